@@ -1,0 +1,44 @@
+//! Mitsuba's `diffuse`: the Lambertian reflector f = R / π, one-sided (front side of the
+//! shading frame only; wrap it in `twosided` for both sides), sampled with a cosine-weighted
+//! hemisphere (Malley's method).
+
+use super::{BsdfSample, Spectrum};
+use crate::sampling::{square_to_cosine_hemisphere, square_to_cosine_hemisphere_pdf};
+use glam::{Vec2, Vec3};
+use std::f32::consts::FRAC_1_PI;
+
+#[derive(Clone, Debug)]
+pub struct Diffuse {
+    pub reflectance: Spectrum,
+}
+
+impl Diffuse {
+    pub fn eval(&self, wi: Vec3, wo: Vec3) -> Spectrum {
+        if wi.z <= 0.0 || wo.z <= 0.0 {
+            return Spectrum::ZERO;
+        }
+        self.reflectance * (FRAC_1_PI * wo.z)
+    }
+
+    pub fn pdf(&self, wi: Vec3, wo: Vec3) -> f32 {
+        if wi.z <= 0.0 {
+            return 0.0;
+        }
+        square_to_cosine_hemisphere_pdf(wo)
+    }
+
+    pub fn sample(&self, wi: Vec3, u: Vec2) -> Option<BsdfSample> {
+        if wi.z <= 0.0 {
+            return None;
+        }
+        let wo = square_to_cosine_hemisphere(u);
+        let pdf = square_to_cosine_hemisphere_pdf(wo);
+        (pdf > 0.0).then_some(BsdfSample {
+            wo,
+            pdf,
+            weight: self.reflectance,
+            eta: 1.0,
+            delta: false,
+        })
+    }
+}

@@ -1,0 +1,186 @@
+//! OpenEXR output (32-bit float, linear RGB, one part) with render metadata in the header,
+//! and input of the same (and of Mitsuba's references). An optional per-sample variance is
+//! stored as the channels `variance.R`, `variance.G`, `variance.B` of the same part.
+
+use crate::error::{Error, Result};
+use ::exr::prelude::*;
+use std::collections::BTreeMap;
+use std::path::Path;
+
+/// An RGB image with an optional per-pixel variance, in row-major order from the top row.
+#[derive(Clone, Debug, PartialEq)]
+pub struct RgbImage {
+    pub width: usize,
+    pub height: usize,
+    pub rgb: Vec<[f32; 3]>,
+    pub variance: Option<Vec<[f32; 3]>>,
+    /// Header attributes other than the required ones, as text.
+    pub attributes: BTreeMap<String, String>,
+}
+
+/// A header attribute value to write.
+#[derive(Clone, Debug)]
+pub enum Attribute {
+    Int(i32),
+    Float(f64),
+    Text(String),
+}
+
+fn channel(name: &str, data: &[[f32; 3]], c: usize) -> AnyChannel<FlatSamples> {
+    AnyChannel::new(name, FlatSamples::F32(data.iter().map(|p| p[c]).collect()))
+}
+
+/// Writes `image` to `path` atomically: into a temporary file next to it, then renamed.
+pub fn write(path: &Path, image: &RgbImage, attributes: &[(&str, Attribute)]) -> Result<()> {
+    let out_err = |message: String| Error::Output {
+        path: path.to_path_buf(),
+        message,
+    };
+    let n = image.width * image.height;
+    if image.rgb.len() != n || image.variance.as_ref().is_some_and(|v| v.len() != n) {
+        return Err(out_err("pixel count does not match the resolution".into()));
+    }
+    let mut channels = vec![
+        channel("R", &image.rgb, 0),
+        channel("G", &image.rgb, 1),
+        channel("B", &image.rgb, 2),
+    ];
+    if let Some(var) = &image.variance {
+        channels.push(channel("variance.R", var, 0));
+        channels.push(channel("variance.G", var, 1));
+        channels.push(channel("variance.B", var, 2));
+    }
+    let mut la = LayerAttributes::default();
+    for (name, value) in attributes {
+        let v = match value {
+            Attribute::Int(i) => AttributeValue::I32(*i),
+            Attribute::Float(f) => AttributeValue::F64(*f),
+            Attribute::Text(t) => {
+                AttributeValue::Text(Text::new_or_none(t.as_str()).unwrap_or_default())
+            }
+        };
+        la.other.insert(Text::from(*name), v);
+    }
+    let layer = Layer::new(
+        (image.width, image.height),
+        la,
+        Encoding::FAST_LOSSLESS,
+        AnyChannels::sort(SmallVec::from_vec(channels)),
+    );
+    let file_name = path
+        .file_name()
+        .ok_or_else(|| out_err("not a file path".into()))?
+        .to_string_lossy()
+        .into_owned();
+    let tmp = path.with_file_name(format!(".{file_name}.tmp"));
+    Image::from_layer(layer)
+        .write()
+        .to_file(&tmp)
+        .map_err(|e| out_err(e.to_string()))?;
+    std::fs::rename(&tmp, path).map_err(|e| {
+        let _ = std::fs::remove_file(&tmp);
+        out_err(e.to_string())
+    })
+}
+
+fn attribute_text(v: &AttributeValue) -> Option<String> {
+    match v {
+        AttributeValue::Text(t) => Some(t.to_string()),
+        AttributeValue::I32(i) => Some(i.to_string()),
+        AttributeValue::F32(f) => Some(f.to_string()),
+        AttributeValue::F64(f) => Some(f.to_string()),
+        _ => None,
+    }
+}
+
+/// Reads the first part of an EXR file: channels R, G, B and, if present, the variance
+/// channels (`variance.R` ... as penumbra writes them).
+pub fn read(path: &Path) -> Result<RgbImage> {
+    let in_err = |message: String| Error::Mesh {
+        path: path.to_path_buf(),
+        message,
+    };
+    if let Err(source) = std::fs::metadata(path) {
+        return Err(Error::Io {
+            path: path.to_path_buf(),
+            source,
+        });
+    }
+    let image = read_all_flat_layers_from_file(path)
+        .map_err(|e| in_err(format!("cannot read EXR: {e}")))?;
+    let layer = image
+        .layer_data
+        .first()
+        .ok_or_else(|| in_err("EXR has no layer".into()))?;
+    let (width, height) = (layer.size.width(), layer.size.height());
+    let get = |name: &str| -> Option<Vec<f32>> {
+        layer
+            .channel_data
+            .list
+            .iter()
+            .find(|c| c.name.to_string() == name)
+            .map(|c| c.sample_data.values_as_f32().collect())
+    };
+    let triple = |names: [&str; 3]| -> Option<Vec<[f32; 3]>> {
+        let [r, g, b] = names.map(get);
+        let (r, g, b) = (r?, g?, b?);
+        Some((0..width * height).map(|i| [r[i], g[i], b[i]]).collect())
+    };
+    let rgb =
+        triple(["R", "G", "B"]).ok_or_else(|| in_err("EXR has no R, G, B channels".into()))?;
+    let variance = triple(["variance.R", "variance.G", "variance.B"]);
+    let mut attributes = BTreeMap::new();
+    for (k, v) in layer
+        .attributes
+        .other
+        .iter()
+        .chain(image.attributes.other.iter())
+    {
+        if let Some(t) = attribute_text(v) {
+            attributes.insert(k.to_string(), t);
+        }
+    }
+    Ok(RgbImage {
+        width,
+        height,
+        rgb,
+        variance,
+        attributes,
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn round_trip_with_variance_and_attributes() {
+        let dir = std::env::temp_dir().join(format!("penumbra-exr-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let path = dir.join("rt.exr");
+        let img = RgbImage {
+            width: 3,
+            height: 2,
+            rgb: (0..6)
+                .map(|i| [i as f32, 0.5, -1.0 / (i as f32 + 1.0)])
+                .collect(),
+            variance: Some((0..6).map(|i| [0.1 * i as f32; 3]).collect()),
+            attributes: BTreeMap::new(),
+        };
+        write(
+            &path,
+            &img,
+            &[
+                ("spp", Attribute::Int(64)),
+                ("penumbra_version", Attribute::Text("x".into())),
+            ],
+        )
+        .unwrap();
+        let back = read(&path).unwrap();
+        assert_eq!(back.rgb, img.rgb);
+        assert_eq!(back.variance, img.variance);
+        assert_eq!(back.attributes.get("spp").map(String::as_str), Some("64"));
+        assert!(!dir.join(".rt.exr.tmp").exists());
+        std::fs::remove_dir_all(&dir).ok();
+    }
+}

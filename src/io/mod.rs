@@ -1,0 +1,3 @@
+//! Image input and output.
+pub mod exr;
+pub mod png;

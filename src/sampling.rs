@@ -1,0 +1,185 @@
+//! Shared sampling math: warps from the unit square and the MIS heuristic. Everything that
+//! samples a direction or a point uses these; nothing re-implements them.
+
+use glam::{Vec2, Vec3};
+use std::f32::consts::{FRAC_PI_2, FRAC_PI_4, PI};
+
+/// Shirley and Chiu 1997, "A Low Distortion Map Between Disk and Square": the concentric map
+/// from [0,1)² to the unit disk.
+#[inline]
+pub fn square_to_uniform_disk_concentric(u: Vec2) -> Vec2 {
+    let o = 2.0 * u - Vec2::ONE;
+    if o.x == 0.0 && o.y == 0.0 {
+        return Vec2::ZERO;
+    }
+    let (r, theta) = if o.x.abs() > o.y.abs() {
+        (o.x, FRAC_PI_4 * (o.y / o.x))
+    } else {
+        (o.y, FRAC_PI_2 - FRAC_PI_4 * (o.x / o.y))
+    };
+    Vec2::new(r * theta.cos(), r * theta.sin())
+}
+
+/// Cosine-weighted hemisphere around +z by Malley's method (project the concentric disk).
+#[inline]
+pub fn square_to_cosine_hemisphere(u: Vec2) -> Vec3 {
+    let d = square_to_uniform_disk_concentric(u);
+    let z = (1.0 - d.length_squared()).max(0.0).sqrt();
+    Vec3::new(d.x, d.y, z)
+}
+
+/// Density of [`square_to_cosine_hemisphere`] w.r.t. solid angle.
+#[inline]
+pub fn square_to_cosine_hemisphere_pdf(v: Vec3) -> f32 {
+    if v.z > 0.0 {
+        v.z / PI
+    } else {
+        0.0
+    }
+}
+
+/// Uniform direction on the unit sphere.
+#[inline]
+pub fn square_to_uniform_sphere(u: Vec2) -> Vec3 {
+    let z = 1.0 - 2.0 * u.y;
+    let r = (1.0 - z * z).max(0.0).sqrt();
+    let phi = 2.0 * PI * u.x;
+    Vec3::new(r * phi.cos(), r * phi.sin(), z)
+}
+
+/// Uniform barycentrics (b1, b2) on a triangle (Shirley's square-root parameterisation);
+/// b0 = 1 − b1 − b2.
+#[inline]
+pub fn square_to_uniform_triangle(u: Vec2) -> Vec2 {
+    let t = (1.0 - u.x).sqrt();
+    Vec2::new(1.0 - t, u.y * t)
+}
+
+/// Veach 1997 (thesis §9.2) power heuristic with β = 2, for one sample from each strategy.
+#[inline]
+pub fn mis_power(pdf_a: f32, pdf_b: f32) -> f32 {
+    let a = pdf_a * pdf_a;
+    let b = pdf_b * pdf_b;
+    if a + b > 0.0 && a.is_finite() {
+        a / (a + b)
+    } else if a.is_infinite() {
+        1.0
+    } else {
+        0.0
+    }
+}
+
+/// A discrete distribution over weights, sampled by inverting its CDF.
+#[derive(Clone, Debug, Default)]
+pub struct Distribution1D {
+    cdf: Vec<f64>,
+    total: f64,
+}
+
+impl Distribution1D {
+    /// `None` when no weight is positive or a weight is not finite.
+    pub fn new(weights: impl IntoIterator<Item = f64>) -> Option<Self> {
+        let mut cdf = Vec::new();
+        let mut acc = 0.0;
+        for w in weights {
+            if !(w.is_finite() && w >= 0.0) {
+                return None;
+            }
+            acc += w;
+            cdf.push(acc);
+        }
+        (acc > 0.0).then_some(Distribution1D { cdf, total: acc })
+    }
+
+    pub fn total(&self) -> f64 {
+        self.total
+    }
+
+    pub fn len(&self) -> usize {
+        self.cdf.len()
+    }
+
+    pub fn is_empty(&self) -> bool {
+        self.cdf.is_empty()
+    }
+
+    /// The probability of index `i`.
+    pub fn pmf(&self, i: usize) -> f64 {
+        let lo = if i == 0 { 0.0 } else { self.cdf[i - 1] };
+        (self.cdf[i] - lo) / self.total
+    }
+
+    /// Picks an index with probability ∝ weight and returns it with `u` rescaled to [0,1)
+    /// within the chosen interval, so one random number serves twice.
+    pub fn sample_reuse(&self, u: f32) -> (usize, f32) {
+        let x = u as f64 * self.total;
+        let i = self
+            .cdf
+            .partition_point(|&c| c <= x)
+            .min(self.cdf.len() - 1);
+        let lo = if i == 0 { 0.0 } else { self.cdf[i - 1] };
+        let w = self.cdf[i] - lo;
+        let r = if w > 0.0 { ((x - lo) / w) as f32 } else { 0.0 };
+        (i, r.clamp(0.0, 1.0 - f32::EPSILON / 2.0))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn concentric_disk_stays_in_disk_and_maps_corners() {
+        for i in 0..=20 {
+            for j in 0..=20 {
+                let d = square_to_uniform_disk_concentric(Vec2::new(i as f32, j as f32) / 20.0);
+                assert!(d.length() <= 1.0 + 1e-6);
+            }
+        }
+        let c = square_to_uniform_disk_concentric(Vec2::new(1.0, 0.5));
+        assert!((c - Vec2::X).length() < 1e-6);
+    }
+
+    #[test]
+    fn cosine_hemisphere_has_expected_mean_cos() {
+        // E[cos θ] under p = cos/π is 2/3; a 64x64 stratified grid gets it to ~1e-3.
+        let n = 64;
+        let mut acc = 0.0;
+        for i in 0..n {
+            for j in 0..n {
+                let u = Vec2::new((i as f32 + 0.5) / n as f32, (j as f32 + 0.5) / n as f32);
+                acc += square_to_cosine_hemisphere(u).z as f64;
+            }
+        }
+        assert!((acc / (n * n) as f64 - 2.0 / 3.0).abs() < 2e-3);
+    }
+
+    #[test]
+    fn triangle_barycentrics_are_valid() {
+        for (x, y) in [(0.0, 0.0), (0.999, 0.999), (0.5, 0.2)] {
+            let b = square_to_uniform_triangle(Vec2::new(x, y));
+            assert!(b.x >= 0.0 && b.y >= 0.0 && b.x + b.y <= 1.0 + 1e-6);
+        }
+    }
+
+    #[test]
+    fn power_heuristic_is_a_partition_of_unity() {
+        assert!((mis_power(0.3, 0.7) + mis_power(0.7, 0.3) - 1.0).abs() < 1e-6);
+        assert_eq!(mis_power(0.0, 0.0), 0.0);
+        assert_eq!(mis_power(f32::INFINITY, 1.0), 1.0);
+    }
+
+    #[test]
+    fn distribution_samples_proportionally() {
+        let d = Distribution1D::new([1.0, 0.0, 3.0]).unwrap();
+        assert_eq!(d.sample_reuse(0.1).0, 0);
+        assert_eq!(d.sample_reuse(0.3).0, 2);
+        assert!((d.pmf(2) - 0.75).abs() < 1e-12);
+        assert_eq!(d.pmf(1), 0.0);
+        let (i, r) = d.sample_reuse(0.625);
+        assert_eq!(i, 2);
+        assert!((r - 0.5).abs() < 1e-6);
+        assert!(Distribution1D::new([0.0, 0.0]).is_none());
+        assert!(Distribution1D::new([f64::NAN]).is_none());
+    }
+}

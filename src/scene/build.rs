@@ -1,0 +1,314 @@
+//! Turns a [`SceneDescription`] into a render-ready [`Scene`]: shapes tessellated or set up
+//! in world space, meshes loaded (tobj), materials and emitters resolved, one BVH built.
+
+use super::description::{
+    BsdfDesc, EmitterDesc, FilterDesc, IntegratorDesc, SceneDescription, ShapeDesc, ShapeKind,
+};
+use super::Scene;
+use crate::accel::Accel;
+use crate::bsdf::{Bsdf, Diffuse, TwoSided};
+use crate::camera::{fov_x_degrees, PerspectiveCamera};
+use crate::emitter::{AreaEmitter, Emitter};
+use crate::error::{Error, Result};
+use crate::film::Filter;
+use crate::integrator::{Integrator, PathIntegrator};
+use crate::shape::mesh::angle_weighted_normals;
+use crate::shape::{Disk, Mesh, Shape, ShapeGeometry, Sphere};
+use glam::{DMat3, DMat4, DVec3, Vec2};
+use std::path::Path;
+
+pub fn build(desc: &SceneDescription) -> Result<Scene> {
+    let s = &desc.sensor;
+    let (width, height) = (s.film.width as usize, s.film.height as usize);
+    let aspect = width as f64 / height as f64;
+    let camera = PerspectiveCamera::new(
+        s.to_world,
+        fov_x_degrees(s.fov, s.fov_axis, aspect),
+        aspect,
+        s.near_clip,
+        s.far_clip,
+    );
+    let mut warnings = Vec::new();
+    let mut shapes = Vec::new();
+    let mut bsdfs = Vec::new();
+    let mut emitters = Vec::new();
+    for sd in &desc.shapes {
+        let geometry = shape_geometry(sd, &mut warnings)?;
+        let shape_index = shapes.len() as u32;
+        bsdfs.push(bsdf(&sd.bsdf));
+        let emitter = sd.emitter.as_ref().map(|e| {
+            emitters.push(match e {
+                EmitterDesc::Area { radiance } => Emitter::Area(AreaEmitter {
+                    shape: shape_index,
+                    radiance: radiance.as_vec3(),
+                }),
+            });
+            (emitters.len() - 1) as u32
+        });
+        shapes.push(Shape {
+            geometry,
+            bsdf: (bsdfs.len() - 1) as u32,
+            emitter,
+        });
+    }
+    if emitters.is_empty() {
+        warnings.push("the scene has no emitter: the image will be black".into());
+    }
+    let accel = Accel::build(&shapes);
+    let integrator = match desc.integrator {
+        IntegratorDesc::Path {
+            max_depth,
+            rr_depth,
+            hide_emitters,
+        } => Integrator::Path(PathIntegrator {
+            max_depth: if max_depth < 0 {
+                u32::MAX
+            } else {
+                max_depth.min(u32::MAX as i64) as u32
+            },
+            rr_depth: rr_depth.clamp(1, u32::MAX as i64) as u32,
+            hide_emitters,
+        }),
+    };
+    Ok(Scene {
+        shapes,
+        bsdfs,
+        emitters,
+        accel,
+        camera,
+        width,
+        height,
+        filter: match s.film.rfilter {
+            FilterDesc::Box => Filter::Box,
+        },
+        sample_count: s.sampler.sample_count,
+        seed: s.sampler.seed,
+        integrator,
+        warnings,
+    })
+}
+
+fn bsdf(d: &BsdfDesc) -> Bsdf {
+    match d {
+        BsdfDesc::Diffuse { reflectance } => Bsdf::Diffuse(Diffuse {
+            reflectance: reflectance.as_vec3(),
+        }),
+        BsdfDesc::TwoSided { front, back } => Bsdf::TwoSided(TwoSided {
+            front: Box::new(bsdf(front)),
+            back: Box::new(bsdf(back)),
+        }),
+    }
+}
+
+/// Local-space quads (four corners, counter-clockwise seen from the side the normal points
+/// to) of Mitsuba's `rectangle` ([-1,1]² at z = 0, normal +z) and `cube` ([-1,1]³).
+fn quads(kind: &ShapeKind) -> Vec<[DVec3; 4]> {
+    let rect = [
+        DVec3::new(-1.0, -1.0, 0.0),
+        DVec3::new(1.0, -1.0, 0.0),
+        DVec3::new(1.0, 1.0, 0.0),
+        DVec3::new(-1.0, 1.0, 0.0),
+    ];
+    match kind {
+        ShapeKind::Rectangle => vec![rect],
+        ShapeKind::Cube => {
+            // The +z face of the unit cube rotated onto each of the six faces.
+            let face = |m: DMat3| rect.map(|p| m * (p + DVec3::Z));
+            vec![
+                face(DMat3::IDENTITY),
+                face(DMat3::from_rotation_x(std::f64::consts::PI)),
+                face(DMat3::from_rotation_x(std::f64::consts::FRAC_PI_2)),
+                face(DMat3::from_rotation_x(-std::f64::consts::FRAC_PI_2)),
+                face(DMat3::from_rotation_y(std::f64::consts::FRAC_PI_2)),
+                face(DMat3::from_rotation_y(-std::f64::consts::FRAC_PI_2)),
+            ]
+        }
+        _ => Vec::new(),
+    }
+}
+
+fn shape_geometry(sd: &ShapeDesc, warnings: &mut Vec<String>) -> Result<ShapeGeometry> {
+    let m = sd.to_world;
+    let degenerate = || {
+        Error::scene(
+            &sd.location,
+            "to_world of this shape is degenerate (zero scale)",
+        )
+    };
+    match &sd.kind {
+        ShapeKind::Rectangle | ShapeKind::Cube => {
+            if m.determinant() == 0.0 {
+                return Err(degenerate());
+            }
+            // A mirroring transform reverses the winding; keep normals pointing where the
+            // transformed local normal points, as Mitsuba does.
+            let mirrored = m.determinant() < 0.0;
+            let mut positions = Vec::new();
+            let mut triangles = Vec::new();
+            for q in quads(&sd.kind) {
+                let base = positions.len() as u32;
+                positions.extend(q.iter().map(|p| m.transform_point3(*p).as_vec3()));
+                let (a, b) = if mirrored {
+                    ([0, 2, 1], [2, 0, 3])
+                } else {
+                    ([0, 1, 2], [2, 3, 0])
+                };
+                triangles.push(a.map(|i| base + i));
+                triangles.push(b.map(|i| base + i));
+            }
+            Ok(ShapeGeometry::Mesh(Mesh::new(
+                positions,
+                None,
+                None,
+                triangles,
+                sd.flip_normals,
+            )))
+        }
+        ShapeKind::Disk => Disk::new(m, sd.flip_normals)
+            .map(ShapeGeometry::Disk)
+            .ok_or_else(degenerate),
+        ShapeKind::Sphere { center, radius } => {
+            // Mitsuba: to_world · translate(center) · scale(radius), then centre and radius
+            // are read back from the combined similarity transform.
+            let full =
+                m * DMat4::from_translation(*center) * DMat4::from_scale(DVec3::splat(*radius));
+            let axes = [0, 1, 2].map(|i| full.col(i).truncate());
+            let r = axes[0].length();
+            let similar = axes.iter().all(|a| (a.length() - r).abs() <= 1e-6 * r)
+                && axes[0].dot(axes[1]).abs() <= 1e-6 * r * r
+                && axes[1].dot(axes[2]).abs() <= 1e-6 * r * r
+                && axes[0].dot(axes[2]).abs() <= 1e-6 * r * r;
+            if !(r > 0.0 && r.is_finite() && similar) {
+                return Err(Error::scene(
+                    &sd.location,
+                    "a sphere's to_world may only rotate, translate and scale uniformly",
+                ));
+            }
+            Ok(ShapeGeometry::Sphere(Sphere {
+                center: full.transform_point3(DVec3::ZERO),
+                radius: r,
+                flip_normals: sd.flip_normals,
+            }))
+        }
+        ShapeKind::Obj {
+            filename,
+            face_normals,
+            flip_tex_coords,
+        } => load_obj(
+            filename,
+            m,
+            *face_normals,
+            *flip_tex_coords,
+            sd.flip_normals,
+            warnings,
+        )
+        .map(ShapeGeometry::Mesh),
+    }
+}
+
+/// Loads a Wavefront OBJ with tobj (triangulated, single index), transforms it to world
+/// space and drops faces with non-finite or coincident vertices (counted in a warning).
+pub fn load_obj(
+    path: &Path,
+    to_world: DMat4,
+    face_normals: bool,
+    flip_tex_coords: bool,
+    flip_normals: bool,
+    warnings: &mut Vec<String>,
+) -> Result<Mesh> {
+    let bytes = std::fs::read(path).map_err(|source| Error::Io {
+        path: path.to_path_buf(),
+        source,
+    })?;
+    let mesh_err = |message: String| Error::Mesh {
+        path: path.to_path_buf(),
+        message,
+    };
+    let mut reader = std::io::BufReader::new(bytes.as_slice());
+    let (models, _) = tobj::load_obj_buf(&mut reader, &tobj::GPU_LOAD_OPTIONS, |_| {
+        Err(tobj::LoadError::GenericFailure) // materials are not used: skip .mtl files
+    })
+    .map_err(|e| mesh_err(e.to_string()))?;
+    let normal_matrix = DMat3::from_mat4(to_world).inverse().transpose();
+    let mut positions = Vec::new();
+    let mut normals = Vec::new();
+    let mut uvs = Vec::new();
+    let mut triangles = Vec::new();
+    let mut all_have_normals = true;
+    let mut all_have_uvs = true;
+    let mut skipped = 0usize;
+    for model in &models {
+        let m = &model.mesh;
+        let base = positions.len();
+        let nv = m.positions.len() / 3;
+        all_have_normals &= m.normals.len() == nv * 3;
+        all_have_uvs &= m.texcoords.len() == nv * 2;
+        for v in 0..nv {
+            let p = DVec3::new(
+                m.positions[3 * v] as f64,
+                m.positions[3 * v + 1] as f64,
+                m.positions[3 * v + 2] as f64,
+            );
+            positions.push(to_world.transform_point3(p).as_vec3());
+            if let Some(n) = m.normals.get(3 * v..3 * v + 3) {
+                let n = DVec3::new(n[0] as f64, n[1] as f64, n[2] as f64);
+                normals.push((normal_matrix * n).normalize_or_zero().as_vec3());
+            }
+            if let Some(t) = m.texcoords.get(2 * v..2 * v + 2) {
+                uvs.push(Vec2::new(
+                    t[0],
+                    if flip_tex_coords { 1.0 - t[1] } else { t[1] },
+                ));
+            }
+        }
+        for f in m.indices.chunks(3) {
+            let [a, b, c] = match f {
+                [a, b, c] => [*a, *b, *c],
+                _ => {
+                    skipped += 1;
+                    continue;
+                }
+            };
+            if [a, b, c].iter().any(|&i| i as usize >= nv) {
+                return Err(mesh_err(format!(
+                    "face index {} out of range",
+                    a.max(b).max(c)
+                )));
+            }
+            let idx = [a, b, c].map(|i| (base + i as usize) as u32);
+            let p = idx.map(|i| positions[i as usize]);
+            let finite = p.iter().all(|q| q.is_finite());
+            let area2 = (p[1] - p[0])
+                .as_dvec3()
+                .cross((p[2] - p[0]).as_dvec3())
+                .length();
+            if !(finite && area2 > 0.0 && area2.is_finite()) {
+                skipped += 1;
+                continue;
+            }
+            triangles.push(idx);
+        }
+    }
+    if skipped > 0 {
+        warnings.push(format!(
+            "{}: skipped {skipped} degenerate or non-finite face(s)",
+            path.display()
+        ));
+    }
+    let normals = if face_normals {
+        None
+    } else if all_have_normals && !normals.is_empty() {
+        Some(normals)
+    } else {
+        Some(angle_weighted_normals(&positions, &triangles))
+    };
+    let uvs = (all_have_uvs && !uvs.is_empty()).then_some(uvs);
+    let mesh = Mesh::new(positions, normals, uvs, triangles, flip_normals);
+    if mesh.triangles.is_empty() {
+        warnings.push(format!(
+            "{}: the mesh has no valid triangle",
+            path.display()
+        ));
+    }
+    Ok(mesh)
+}

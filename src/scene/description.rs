@@ -1,0 +1,675 @@
+//! The typed scene description: plain data parsed from the generic XML tree, with Mitsuba's
+//! defaults filled in and every plugin and parameter checked. No rendering types here.
+//!
+//! Anything outside the supported subset is an error naming the element, its plugin type and
+//! its location; nothing is silently ignored.
+
+use super::xml::{Child, Object, Value};
+use crate::camera::FovAxis;
+use crate::error::{Error, Location, Result};
+use glam::{DMat4, DVec3};
+use std::path::PathBuf;
+use std::sync::Arc;
+
+#[derive(Clone, Debug, PartialEq)]
+pub struct SceneDescription {
+    pub integrator: IntegratorDesc,
+    pub sensor: SensorDesc,
+    pub shapes: Vec<ShapeDesc>,
+}
+
+/// Mitsuba's `path` integrator. `max_depth` −1 means unbounded.
+#[derive(Clone, Debug, PartialEq)]
+pub enum IntegratorDesc {
+    Path {
+        max_depth: i64,
+        rr_depth: i64,
+        hide_emitters: bool,
+    },
+}
+
+#[derive(Clone, Debug, PartialEq)]
+pub struct SensorDesc {
+    pub fov: f64,
+    pub fov_axis: FovAxis,
+    pub near_clip: f64,
+    pub far_clip: f64,
+    pub to_world: DMat4,
+    pub film: FilmDesc,
+    pub sampler: SamplerDesc,
+    pub location: Location,
+}
+
+#[derive(Clone, Debug, PartialEq)]
+pub struct FilmDesc {
+    pub width: u32,
+    pub height: u32,
+    pub rfilter: FilterDesc,
+}
+
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum FilterDesc {
+    Box,
+}
+
+#[derive(Clone, Debug, PartialEq)]
+pub struct SamplerDesc {
+    pub sample_count: u32,
+    pub seed: u64,
+}
+
+#[derive(Clone, Debug, PartialEq)]
+pub enum ShapeKind {
+    Rectangle,
+    Cube,
+    Disk,
+    Sphere {
+        center: DVec3,
+        radius: f64,
+    },
+    Obj {
+        filename: PathBuf,
+        face_normals: bool,
+        flip_tex_coords: bool,
+    },
+}
+
+#[derive(Clone, Debug, PartialEq)]
+pub struct ShapeDesc {
+    pub kind: ShapeKind,
+    pub to_world: DMat4,
+    pub flip_normals: bool,
+    pub bsdf: BsdfDesc,
+    pub emitter: Option<EmitterDesc>,
+    pub location: Location,
+}
+
+#[derive(Clone, Debug, PartialEq)]
+pub enum BsdfDesc {
+    Diffuse {
+        reflectance: DVec3,
+    },
+    TwoSided {
+        front: Box<BsdfDesc>,
+        back: Box<BsdfDesc>,
+    },
+}
+
+impl BsdfDesc {
+    /// Mitsuba's default for a shape without a BSDF: diffuse with reflectance 0.5.
+    pub fn default_diffuse() -> Self {
+        BsdfDesc::Diffuse {
+            reflectance: DVec3::splat(0.5),
+        }
+    }
+}
+
+#[derive(Clone, Debug, PartialEq)]
+pub enum EmitterDesc {
+    Area { radiance: DVec3 },
+}
+
+/// Largest image side accepted; refusing larger ones before allocating anything.
+pub const MAX_RESOLUTION: u32 = 1 << 16;
+
+/// `<tag type="plugin">` for messages.
+fn describe(o: &Object) -> String {
+    if o.plugin.is_empty() {
+        format!("<{}>", o.tag)
+    } else {
+        format!("<{} type=\"{}\">", o.tag, o.plugin)
+    }
+}
+
+/// Reads an object's properties by name, tracking which were used so that unknown ones are
+/// reported.
+struct Props<'a> {
+    obj: &'a Object,
+    used: Vec<bool>,
+}
+
+impl<'a> Props<'a> {
+    fn new(obj: &'a Object) -> Self {
+        Props {
+            obj,
+            used: vec![false; obj.properties.len()],
+        }
+    }
+
+    fn take(&mut self, name: &str) -> Option<(&'a Value, &'a Location)> {
+        let i = self.obj.properties.iter().position(|p| p.name == name)?;
+        self.used[i] = true;
+        let p = &self.obj.properties[i];
+        Some((&p.value, &p.location))
+    }
+
+    fn wrong_type(&self, name: &str, v: &Value, loc: &Location, expected: &str) -> Error {
+        Error::scene(
+            loc,
+            format!(
+                "parameter '{name}' of {} must be {expected}, not {}",
+                describe(self.obj),
+                v.type_name()
+            ),
+        )
+    }
+
+    fn float(&mut self, name: &str, default: f64) -> Result<f64> {
+        match self.take(name) {
+            None => Ok(default),
+            Some((Value::Float(x), _)) => Ok(*x),
+            Some((Value::Integer(i), _)) => Ok(*i as f64),
+            Some((v, loc)) => Err(self.wrong_type(name, v, loc, "a float")),
+        }
+    }
+
+    fn int(&mut self, name: &str, default: i64) -> Result<i64> {
+        match self.take(name) {
+            None => Ok(default),
+            Some((Value::Integer(i), _)) => Ok(*i),
+            Some((v, loc)) => Err(self.wrong_type(name, v, loc, "an integer")),
+        }
+    }
+
+    fn boolean(&mut self, name: &str, default: bool) -> Result<bool> {
+        match self.take(name) {
+            None => Ok(default),
+            Some((Value::Boolean(b), _)) => Ok(*b),
+            Some((v, loc)) => Err(self.wrong_type(name, v, loc, "a boolean")),
+        }
+    }
+
+    fn string(&mut self, name: &str) -> Result<Option<(&'a str, &'a Location)>> {
+        match self.take(name) {
+            None => Ok(None),
+            Some((Value::String(s), loc)) => Ok(Some((s.as_str(), loc))),
+            Some((v, loc)) => Err(self.wrong_type(name, v, loc, "a string")),
+        }
+    }
+
+    /// An RGB colour given as `<rgb>` or as one `<float>`.
+    fn color(&mut self, name: &str) -> Result<Option<DVec3>> {
+        match self.take(name) {
+            None => Ok(None),
+            Some((Value::Rgb(c), _)) => Ok(Some(*c)),
+            Some((Value::Float(x), _)) => Ok(Some(DVec3::splat(*x))),
+            Some((Value::Integer(i), _)) => Ok(Some(DVec3::splat(*i as f64))),
+            Some((v, loc)) => Err(self.wrong_type(name, v, loc, "an rgb or float")),
+        }
+    }
+
+    fn point(&mut self, name: &str, default: DVec3) -> Result<DVec3> {
+        match self.take(name) {
+            None => Ok(default),
+            Some((Value::Point(p), _)) | Some((Value::Vector(p), _)) => Ok(*p),
+            Some((v, loc)) => Err(self.wrong_type(name, v, loc, "a point")),
+        }
+    }
+
+    fn transform(&mut self, name: &str) -> Result<DMat4> {
+        match self.take(name) {
+            None => Ok(DMat4::IDENTITY),
+            Some((Value::Transform(m), _)) => Ok(*m),
+            Some((v, loc)) => Err(self.wrong_type(name, v, loc, "a transform")),
+        }
+    }
+
+    /// Fails on the first property that was never read.
+    fn finish(self) -> Result<()> {
+        for (p, used) in self.obj.properties.iter().zip(&self.used) {
+            if !used {
+                return Err(Error::scene(
+                    &p.location,
+                    format!(
+                        "unknown parameter '{}' ({}) of {}",
+                        p.name,
+                        p.value.type_name(),
+                        describe(self.obj)
+                    ),
+                ));
+            }
+        }
+        Ok(())
+    }
+}
+
+fn unsupported_plugin(o: &Object) -> Error {
+    Error::scene(
+        &o.location,
+        format!(
+            "unsupported plugin {}: penumbra does not implement it",
+            describe(o)
+        ),
+    )
+}
+
+fn unexpected_child(parent: &Object, child: &Object) -> Error {
+    Error::scene(
+        &child.location,
+        format!(
+            "{} cannot be nested in {}",
+            describe(child),
+            describe(parent)
+        ),
+    )
+}
+
+fn positive(value: f64, what: &str, o: &Object) -> Result<f64> {
+    if value > 0.0 && value.is_finite() {
+        Ok(value)
+    } else {
+        Err(Error::scene(
+            &o.location,
+            format!("{what} of {} must be positive, got {value}", describe(o)),
+        ))
+    }
+}
+
+/// Converts the `<scene>` root of [`super::xml`] into a typed description.
+pub fn from_xml(root: &Object) -> Result<SceneDescription> {
+    if root.tag != "scene" {
+        return Err(Error::scene(
+            &root.location,
+            "the root element must be <scene>",
+        ));
+    }
+    Props::new(root).finish()?;
+    let mut integrator = None;
+    let mut sensor = None;
+    let mut shapes = Vec::new();
+    for Child { object: o, .. } in &root.children {
+        match o.tag.as_str() {
+            "integrator" => {
+                if integrator.is_some() {
+                    return Err(Error::scene(
+                        &o.location,
+                        "a scene has at most one <integrator>",
+                    ));
+                }
+                integrator = Some(integrator_desc(o)?);
+            }
+            "sensor" => {
+                if sensor.is_some() {
+                    return Err(Error::scene(
+                        &o.location,
+                        "penumbra renders scenes with exactly one <sensor>",
+                    ));
+                }
+                sensor = Some(sensor_desc(o)?);
+            }
+            "shape" => shapes.push(shape_desc(o)?),
+            // Declared for later <ref>s; check them now so that errors surface even when
+            // unreferenced, as Mitsuba instantiates them too.
+            "bsdf" => {
+                bsdf_desc(o)?;
+            }
+            _ => return Err(unexpected_child(root, o)),
+        }
+    }
+    let sensor = sensor.ok_or_else(|| Error::Invalid("the scene has no <sensor>".into()))?;
+    Ok(SceneDescription {
+        integrator: integrator.unwrap_or(IntegratorDesc::Path {
+            max_depth: -1,
+            rr_depth: 5,
+            hide_emitters: false,
+        }),
+        sensor,
+        shapes,
+    })
+}
+
+fn no_children(o: &Object) -> Result<()> {
+    match o.children.first() {
+        Some(c) => Err(unexpected_child(o, &c.object)),
+        None => Ok(()),
+    }
+}
+
+fn integrator_desc(o: &Object) -> Result<IntegratorDesc> {
+    if o.plugin != "path" {
+        return Err(unsupported_plugin(o));
+    }
+    no_children(o)?;
+    let mut p = Props::new(o);
+    let max_depth = p.int("max_depth", -1)?;
+    let rr_depth = p.int("rr_depth", 5)?;
+    let hide_emitters = p.boolean("hide_emitters", false)?;
+    p.finish()?;
+    if max_depth < -1 {
+        return Err(Error::scene(
+            &o.location,
+            format!(
+                "max_depth of {} must be -1 (unbounded) or >= 0, got {max_depth}",
+                describe(o)
+            ),
+        ));
+    }
+    if rr_depth <= 0 {
+        return Err(Error::scene(
+            &o.location,
+            format!("rr_depth of {} must be > 0, got {rr_depth}", describe(o)),
+        ));
+    }
+    Ok(IntegratorDesc::Path {
+        max_depth,
+        rr_depth,
+        hide_emitters,
+    })
+}
+
+fn sensor_desc(o: &Object) -> Result<SensorDesc> {
+    if o.plugin != "perspective" {
+        return Err(unsupported_plugin(o));
+    }
+    let mut p = Props::new(o);
+    let fov = p.float("fov", f64::NAN)?;
+    let fov_axis = match p.string("fov_axis")? {
+        None => FovAxis::X,
+        Some((s, loc)) => match s {
+            "x" => FovAxis::X,
+            "y" => FovAxis::Y,
+            "diagonal" => FovAxis::Diagonal,
+            "smaller" => FovAxis::Smaller,
+            "larger" => FovAxis::Larger,
+            _ => {
+                return Err(Error::scene(
+                    loc,
+                    format!("fov_axis must be x, y, diagonal, smaller or larger, not '{s}'"),
+                ))
+            }
+        },
+    };
+    let near_clip = p.float("near_clip", 0.01)?;
+    let far_clip = p.float("far_clip", 1e4)?;
+    // Mitsuba's projective cameras accept focus_distance; a pinhole has no use for it.
+    p.float("focus_distance", 0.0)?;
+    let to_world = p.transform("to_world")?;
+    p.finish()?;
+    if fov.is_nan() {
+        return Err(Error::scene(
+            &o.location,
+            format!("{} needs a 'fov' (degrees)", describe(o)),
+        ));
+    }
+    if !(fov > 0.0 && fov < 180.0) {
+        return Err(Error::scene(
+            &o.location,
+            format!(
+                "fov of {} must lie in (0, 180) degrees, got {fov}",
+                describe(o)
+            ),
+        ));
+    }
+    positive(near_clip, "near_clip", o)?;
+    positive(far_clip, "far_clip", o)?;
+    if near_clip >= far_clip {
+        return Err(Error::scene(
+            &o.location,
+            format!("near_clip ({near_clip}) must be less than far_clip ({far_clip})"),
+        ));
+    }
+    let mut film = None;
+    let mut sampler = None;
+    for Child { object: c, .. } in &o.children {
+        match c.tag.as_str() {
+            "film" if film.is_none() => film = Some(film_desc(c)?),
+            "sampler" if sampler.is_none() => sampler = Some(sampler_desc(c)?),
+            _ => return Err(unexpected_child(o, c)),
+        }
+    }
+    Ok(SensorDesc {
+        fov,
+        fov_axis,
+        near_clip,
+        far_clip,
+        to_world,
+        film: match film {
+            Some(f) => f,
+            None => {
+                return Err(Error::scene(
+                    &o.location,
+                    format!(
+                        "{} has no <film>: Mitsuba's default film uses the gaussian filter, \
+                         which penumbra does not support yet; add <film type=\"hdrfilm\"> \
+                         with <rfilter type=\"box\"/>",
+                        describe(o)
+                    ),
+                ))
+            }
+        },
+        sampler: sampler.unwrap_or(SamplerDesc {
+            sample_count: 4,
+            seed: 0,
+        }),
+        location: o.location.clone(),
+    })
+}
+
+fn film_desc(o: &Object) -> Result<FilmDesc> {
+    if o.plugin != "hdrfilm" {
+        return Err(unsupported_plugin(o));
+    }
+    let mut p = Props::new(o);
+    let width = p.int("width", 768)?;
+    let height = p.int("height", 576)?;
+    if let Some((f, loc)) = p.string("component_format")? {
+        // The output is always float32 EXR; the other formats are accepted like Mitsuba.
+        if !matches!(f, "float16" | "float32" | "uint32") {
+            return Err(Error::scene(
+                loc,
+                format!("component_format must be float16, float32 or uint32, not '{f}'"),
+            ));
+        }
+    }
+    if let Some((f, loc)) = p.string("pixel_format")? {
+        if f != "rgb" {
+            return Err(Error::scene(
+                loc,
+                format!("pixel_format '{f}' is not supported (penumbra writes rgb)"),
+            ));
+        }
+    }
+    p.finish()?;
+    for (name, v) in [("width", width), ("height", height)] {
+        if v <= 0 || v > MAX_RESOLUTION as i64 {
+            return Err(Error::scene(
+                &o.location,
+                format!("film {name} must be between 1 and {MAX_RESOLUTION}, got {v}"),
+            ));
+        }
+    }
+    let mut rfilter = None;
+    for Child { object: c, .. } in &o.children {
+        match c.tag.as_str() {
+            "rfilter" if rfilter.is_none() => {
+                if c.plugin != "box" {
+                    return Err(Error::scene(
+                        &c.location,
+                        format!(
+                            "unsupported plugin {}: penumbra supports only the box filter so far",
+                            describe(c)
+                        ),
+                    ));
+                }
+                let mut fp = Props::new(c);
+                let radius = fp.float("radius", 0.5)?;
+                fp.finish()?;
+                no_children(c)?;
+                if radius != 0.5 {
+                    return Err(Error::scene(
+                        &c.location,
+                        "the box filter is supported with its default radius 0.5 only",
+                    ));
+                }
+                rfilter = Some(FilterDesc::Box);
+            }
+            _ => return Err(unexpected_child(o, c)),
+        }
+    }
+    let rfilter = rfilter.ok_or_else(|| {
+        Error::scene(
+            &o.location,
+            format!(
+                "{} has no <rfilter>: Mitsuba's default is gaussian, which penumbra does not \
+                 support yet; add <rfilter type=\"box\"/>",
+                describe(o)
+            ),
+        )
+    })?;
+    Ok(FilmDesc {
+        width: width as u32,
+        height: height as u32,
+        rfilter,
+    })
+}
+
+fn sampler_desc(o: &Object) -> Result<SamplerDesc> {
+    if o.plugin != "independent" {
+        return Err(unsupported_plugin(o));
+    }
+    no_children(o)?;
+    let mut p = Props::new(o);
+    let sample_count = p.int("sample_count", 4)?;
+    let seed = p.int("seed", 0)?;
+    p.finish()?;
+    if sample_count <= 0 || sample_count > u32::MAX as i64 {
+        return Err(Error::scene(
+            &o.location,
+            format!(
+                "sample_count must be between 1 and {}, got {sample_count}",
+                u32::MAX
+            ),
+        ));
+    }
+    if seed < 0 {
+        return Err(Error::scene(
+            &o.location,
+            format!("seed must be >= 0, got {seed}"),
+        ));
+    }
+    Ok(SamplerDesc {
+        sample_count: sample_count as u32,
+        seed: seed as u64,
+    })
+}
+
+fn shape_desc(o: &Object) -> Result<ShapeDesc> {
+    let mut p = Props::new(o);
+    let to_world = p.transform("to_world")?;
+    let flip_normals = p.boolean("flip_normals", false)?;
+    let kind = match o.plugin.as_str() {
+        "rectangle" => ShapeKind::Rectangle,
+        "cube" => ShapeKind::Cube,
+        "disk" => ShapeKind::Disk,
+        "sphere" => {
+            let center = p.point("center", DVec3::ZERO)?;
+            let radius = p.float("radius", 1.0)?;
+            positive(radius, "radius", o)?;
+            ShapeKind::Sphere { center, radius }
+        }
+        "obj" => {
+            let (name, _) = p.string("filename")?.ok_or_else(|| {
+                Error::scene(&o.location, format!("{} needs a 'filename'", describe(o)))
+            })?;
+            let base = o
+                .location
+                .file
+                .parent()
+                .map(PathBuf::from)
+                .unwrap_or_default();
+            ShapeKind::Obj {
+                filename: base.join(name),
+                face_normals: p.boolean("face_normals", false)?,
+                flip_tex_coords: p.boolean("flip_tex_coords", true)?,
+            }
+        }
+        _ => return Err(unsupported_plugin(o)),
+    };
+    p.finish()?;
+    if !to_world.is_finite() {
+        return Err(Error::scene(
+            &o.location,
+            format!("to_world of {} is not finite", describe(o)),
+        ));
+    }
+    let mut bsdf = None;
+    let mut emitter = None;
+    for Child { object: c, .. } in &o.children {
+        match c.tag.as_str() {
+            "bsdf" if bsdf.is_none() => bsdf = Some(bsdf_desc(c)?),
+            "emitter" if emitter.is_none() => emitter = Some(area_emitter_desc(c)?),
+            "bsdf" | "emitter" => {
+                return Err(Error::scene(
+                    &c.location,
+                    format!("{} has more than one <{}>", describe(o), c.tag),
+                ))
+            }
+            _ => return Err(unexpected_child(o, c)),
+        }
+    }
+    Ok(ShapeDesc {
+        kind,
+        to_world,
+        flip_normals,
+        bsdf: bsdf.unwrap_or_else(BsdfDesc::default_diffuse),
+        emitter,
+        location: o.location.clone(),
+    })
+}
+
+fn bsdf_desc(o: &Arc<Object>) -> Result<BsdfDesc> {
+    match o.plugin.as_str() {
+        "diffuse" => {
+            no_children(o)?;
+            let mut p = Props::new(o);
+            let reflectance = p.color("reflectance")?.unwrap_or(DVec3::splat(0.5));
+            p.finish()?;
+            Ok(BsdfDesc::Diffuse { reflectance })
+        }
+        "twosided" => {
+            Props::new(o).finish()?;
+            let mut nested = Vec::new();
+            for Child { object: c, .. } in &o.children {
+                if c.tag != "bsdf" || nested.len() == 2 {
+                    return Err(unexpected_child(o, c));
+                }
+                if c.plugin == "twosided" {
+                    return Err(Error::scene(
+                        &c.location,
+                        "a twosided BSDF cannot nest another twosided",
+                    ));
+                }
+                nested.push(bsdf_desc(c)?);
+            }
+            let mut it = nested.into_iter();
+            let front = it.next().ok_or_else(|| {
+                Error::scene(
+                    &o.location,
+                    format!("{} needs a nested <bsdf>", describe(o)),
+                )
+            })?;
+            let back = it.next().unwrap_or_else(|| front.clone());
+            Ok(BsdfDesc::TwoSided {
+                front: Box::new(front),
+                back: Box::new(back),
+            })
+        }
+        _ => Err(unsupported_plugin(o)),
+    }
+}
+
+fn area_emitter_desc(o: &Object) -> Result<EmitterDesc> {
+    if o.plugin != "area" {
+        return Err(unsupported_plugin(o));
+    }
+    no_children(o)?;
+    let mut p = Props::new(o);
+    let radiance = p.color("radiance")?;
+    p.finish()?;
+    let radiance = radiance
+        .ok_or_else(|| Error::scene(&o.location, format!("{} needs a 'radiance'", describe(o))))?;
+    if radiance.min_element() < 0.0 {
+        return Err(Error::scene(&o.location, "radiance must not be negative"));
+    }
+    Ok(EmitterDesc::Area { radiance })
+}

@@ -1,0 +1,114 @@
+//! Scene input and the built scene. Data flows one way: Mitsuba XML → [`xml`] (generic
+//! object tree) → [`description`] (typed plain data) → [`build`] (render-ready [`Scene`]:
+//! meshes, BVH, lights, materials).
+
+pub mod build;
+pub mod description;
+pub mod xml;
+
+use crate::accel::Accel;
+use crate::bsdf::Bsdf;
+use crate::camera::PerspectiveCamera;
+use crate::emitter::{DirectionSample, Emitter};
+use crate::error::Result;
+use crate::film::Filter;
+use crate::geometry::{offset_ray_origin, Ray, SHADOW_EPSILON};
+use crate::integrator::Integrator;
+use crate::shape::{Shape, SurfaceInteraction};
+use glam::{Vec2, Vec3};
+use std::path::Path;
+
+/// A scene ready to render.
+pub struct Scene {
+    pub shapes: Vec<Shape>,
+    pub bsdfs: Vec<Bsdf>,
+    pub emitters: Vec<Emitter>,
+    pub accel: Accel,
+    pub camera: PerspectiveCamera,
+    pub width: usize,
+    pub height: usize,
+    pub filter: Filter,
+    /// The sampler's `sample_count` (the CLI's `--spp` overrides it).
+    pub sample_count: u32,
+    /// The sampler's `seed`.
+    pub seed: u64,
+    pub integrator: Integrator,
+    /// Things the user should know that are not errors (skipped faces, no emitter, ...).
+    pub warnings: Vec<String>,
+}
+
+impl Scene {
+    /// Loads a Mitsuba XML file with `-D name=value` overrides and builds it.
+    pub fn load(path: &Path, defines: &[(String, String)]) -> Result<Scene> {
+        let root = xml::load_file(path, defines)?;
+        let desc = description::from_xml(&root)?;
+        build::build(&desc)
+    }
+
+    /// The closest surface hit by `ray`.
+    #[inline]
+    pub fn intersect(&self, ray: &Ray) -> Option<SurfaceInteraction> {
+        let hit = self.accel.intersect(ray, &self.shapes)?;
+        Some(self.accel.interaction(&hit, ray, &self.shapes))
+    }
+
+    #[inline]
+    pub fn occluded(&self, ray: &Ray) -> bool {
+        self.accel.occluded(ray, &self.shapes)
+    }
+
+    /// A ray leaving `si` in direction `d`, from an origin offset off the surface.
+    #[inline]
+    pub fn spawn_ray(si: &SurfaceInteraction, d: Vec3) -> Ray {
+        Ray::new(
+            offset_ray_origin(si.p, si.p_error, si.ng, d),
+            d,
+            f32::INFINITY,
+        )
+    }
+
+    /// The shadow ray from `si` to the emitter point of `ds`: both ends are offset off their
+    /// surfaces, and the ray stops a relative [`SHADOW_EPSILON`] short of its end.
+    #[inline]
+    pub fn shadow_ray(si: &SurfaceInteraction, ds: &DirectionSample) -> Ray {
+        let from = offset_ray_origin(si.p, si.p_error, si.ng, ds.d);
+        let to = offset_ray_origin(ds.p, ds.p_error, ds.n, -ds.d);
+        Ray::new(from, to - from, 1.0 - SHADOW_EPSILON)
+    }
+
+    /// Probability of choosing emitter `i` for next-event estimation (uniform, as Mitsuba).
+    #[inline]
+    fn emitter_pmf(&self) -> f32 {
+        1.0 / self.emitters.len() as f32
+    }
+
+    /// Picks an emitter and a point on it as seen from `si`; the returned pdf includes the
+    /// selection probability. Visibility is not tested.
+    pub fn sample_emitter_direction(
+        &self,
+        si: &SurfaceInteraction,
+        u: Vec2,
+    ) -> Option<DirectionSample> {
+        if self.emitters.is_empty() {
+            return None;
+        }
+        let n = self.emitters.len();
+        let x = u.x * n as f32;
+        let i = (x as usize).min(n - 1);
+        let ux = (x - i as f32).clamp(0.0, 1.0 - f32::EPSILON / 2.0);
+        let mut ds = self.emitters[i].sample_direction(si.p, Vec2::new(ux, u.y), &self.shapes)?;
+        ds.pdf *= self.emitter_pmf();
+        Some(ds)
+    }
+
+    /// The solid-angle density with which [`Scene::sample_emitter_direction`] from `p_ref`
+    /// would have produced the emitter point `hit` (a surface with an area emitter).
+    pub fn pdf_emitter_direction(&self, p_ref: Vec3, hit: &SurfaceInteraction) -> f32 {
+        let Some(e) = self.shapes[hit.shape as usize].emitter else {
+            return 0.0;
+        };
+        match &self.emitters[e as usize] {
+            Emitter::Area(a) => a.pdf_direction(p_ref, hit, &self.shapes) * self.emitter_pmf(),
+        }
+    }
+}

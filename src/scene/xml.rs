@@ -1,0 +1,2203 @@
+//! Mitsuba 3 XML scene files, parsed into a generic object tree.
+//!
+//! This module reads the XML syntax of a Mitsuba 3 scene and resolves everything that is
+//! independent of the plugins themselves:
+//!
+//! - `<include filename="..."/>` (relative to the including file, cycles rejected),
+//! - `<default name="..." value="..."/>` and `$name` substitution in every attribute value,
+//!   with command-line overrides taking precedence over the file's defaults,
+//! - `<ref id="..."/>` (and `<alias id="..." as="..."/>`), resolved to the very same
+//!   [`Arc<Object>`] that was declared earlier in document order,
+//! - `<transform>` blocks, composed exactly like Mitsuba does (each operation `M` is applied
+//!   after the previous ones: `T = M * T`),
+//! - typed properties (`integer`, `float`, `boolean`, `string`, `rgb`, `point`, `vector`,
+//!   `transform`), parsed into [`Value`]s.
+//!
+//! It knows nothing about specific plugins: a later stage turns the [`Object`] tree into typed
+//! scene objects and rejects unknown plugins and parameters.
+//!
+//! Every [`Object`] and [`Property`] carries the [`Location`] of its element, and every error
+//! about an element names its tag, its `type` (if any) and its location. The parser is meant
+//! to face hostile input: it never panics, bounds its recursion, and rejects deeply nested
+//! documents before building them.
+
+use crate::error::{Error, Location, Result};
+use glam::{DMat3, DMat4, DVec3};
+use roxmltree::{Node, NodeType};
+use std::borrow::Cow;
+use std::cell::Cell;
+use std::collections::HashMap;
+use std::path::{Path, PathBuf};
+use std::sync::Arc;
+
+/// Tags that declare a plugin object (`<shape type="...">` and so on).
+const OBJECT_TAGS: &[&str] = &[
+    "integrator",
+    "sensor",
+    "film",
+    "rfilter",
+    "sampler",
+    "bsdf",
+    "shape",
+    "emitter",
+    "texture",
+    "medium",
+    "phase",
+    "volume",
+];
+
+/// Tags that may only appear inside a `<transform>`.
+const TRANSFORM_OPS: &[&str] = &["translate", "rotate", "scale", "matrix", "lookat"];
+
+/// Maximum nesting depth of elements below `<scene>`, counted across included files.
+const MAX_NESTING_DEPTH: usize = 64;
+
+/// Maximum length of a chain of `<include>`s.
+const MAX_INCLUDE_DEPTH: usize = 32;
+
+/// Maximum XML element depth of one file, checked by a cheap scan before the document is
+/// built, so that absurdly deep input is rejected without building it.
+const MAX_XML_DEPTH: usize = 128;
+
+/// Maximum number of attributes of one element, checked by the same scan (the XML parser's
+/// duplicate-attribute check is quadratic in it).
+const MAX_XML_ATTRIBUTES: usize = 256;
+
+/// Total number of bytes that `$name` substitution may produce while loading one scene; this
+/// stops defaults that expand into each other from blowing up exponentially.
+const SUBSTITUTION_BUDGET: usize = 64 << 20;
+
+/// The value of a property.
+#[derive(Debug, Clone, PartialEq)]
+pub enum Value {
+    /// `<integer name=".." value="3"/>`
+    Integer(i64),
+    /// `<float name=".." value="0.5"/>` (always finite)
+    Float(f64),
+    /// `<boolean name=".." value="true"/>`
+    Boolean(bool),
+    /// `<string name=".." value=".."/>`
+    String(String),
+    /// `<rgb name=".." value="r g b"/>` (or a single value for grey)
+    Rgb(DVec3),
+    /// `<point name=".." x=".." y=".." z=".."/>` or `value="x y z"`
+    Point(DVec3),
+    /// `<vector name=".." x=".." y=".." z=".."/>` or `value="x y z"`
+    Vector(DVec3),
+    /// `<transform name="..">` with its operations composed into one matrix.
+    Transform(DMat4),
+}
+
+impl Value {
+    /// The XML tag of this kind of value: `"integer"`, `"float"`, `"boolean"`, `"string"`,
+    /// `"rgb"`, `"point"`, `"vector"` or `"transform"`.
+    pub fn type_name(&self) -> &'static str {
+        match self {
+            Value::Integer(_) => "integer",
+            Value::Float(_) => "float",
+            Value::Boolean(_) => "boolean",
+            Value::String(_) => "string",
+            Value::Rgb(_) => "rgb",
+            Value::Point(_) => "point",
+            Value::Vector(_) => "vector",
+            Value::Transform(_) => "transform",
+        }
+    }
+}
+
+/// A named property of an object, such as `<float name="radius" value="2"/>`.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Property {
+    /// The `name` attribute.
+    pub name: String,
+    /// The parsed value.
+    pub value: Value,
+    /// Where the property's element starts.
+    pub location: Location,
+}
+
+/// A nested object or a `<ref>` inside an object.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Child {
+    /// The `name` attribute at the use site (of the nested object or of the `<ref>`), if any.
+    pub name: Option<String>,
+    /// The object. A `<ref>` yields the same `Arc` as the object it refers to.
+    pub object: Arc<Object>,
+}
+
+/// An object of the scene: a plugin instance such as `<shape type="sphere">`, or the `<scene>`
+/// root itself.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Object {
+    /// The element's tag: `"shape"`, `"bsdf"`, ..., or `"scene"` for the root.
+    pub tag: String,
+    /// The `type` attribute (the plugin name); empty for the scene root.
+    pub plugin: String,
+    /// The `id` attribute, if any (unique across the scene and its included files).
+    pub id: Option<String>,
+    /// The properties, in document order.
+    pub properties: Vec<Property>,
+    /// Nested objects and references, in document order.
+    pub children: Vec<Child>,
+    /// Where the object's element starts.
+    pub location: Location,
+}
+
+/// Loads the scene file at `path` and returns its `<scene>` root.
+///
+/// `overrides` are `(name, value)` pairs (the CLI's `-D name=value`) that take precedence
+/// over the file's `<default>`s; if a name is given twice, the last one wins.
+///
+/// Errors: [`Error::Io`] if the file cannot be read, [`Error::Xml`] if it is not UTF-8 or not
+/// well-formed XML, [`Error::Scene`] for everything the scene says that is not accepted.
+pub fn load_file(path: &Path, overrides: &[(String, String)]) -> Result<Object> {
+    let text = std::fs::read(path).map_err(|source| Error::Io {
+        path: path.to_path_buf(),
+        source,
+    })?;
+    let text = decode_utf8(path, text)?;
+    load_str(&text, path, overrides)
+}
+
+/// Parses the scene in `text` and returns its `<scene>` root.
+///
+/// `path` is the file the text came from: it is used for locations in errors and to resolve
+/// relative `<include>`s (it need not exist if there are none). `overrides` are as in
+/// [`load_file`].
+pub fn load_str(text: &str, path: &Path, overrides: &[(String, String)]) -> Result<Object> {
+    let mut loader = Loader::new(overrides);
+    let mut file = SourceFile::new(path, text);
+    let doc = parse_document(&file)?;
+    loader.include_stack.push(IncludeFrame {
+        key: include_key(path),
+        shown: path.to_path_buf(),
+    });
+    loader.load_root(&mut file, doc.root_element())
+}
+
+/// The document-order state of a load: parameters, declared ids, the include chain.
+struct Loader {
+    /// `$name` values: overrides first, then `<default>`s (the first definition wins).
+    params: HashMap<String, String>,
+    /// Every id declared so far.
+    ids: HashMap<String, IdEntry>,
+    /// The chain of files being included, outermost first.
+    include_stack: Vec<IncludeFrame>,
+    /// Bytes that `$name` substitution may still produce.
+    substitution_budget: usize,
+}
+
+/// The state of a declared id.
+enum IdEntry {
+    /// The object is still being parsed (the id belongs to an enclosing element).
+    Pending(Location),
+    /// The object is complete.
+    Done(Arc<Object>, Location),
+}
+
+impl IdEntry {
+    fn location(&self) -> &Location {
+        match self {
+            IdEntry::Pending(location) | IdEntry::Done(_, location) => location,
+        }
+    }
+}
+
+/// One file of the include chain.
+struct IncludeFrame {
+    /// The canonical path when it exists, to recognise the same file under other names.
+    key: PathBuf,
+    /// The path as written, for messages.
+    shown: PathBuf,
+}
+
+/// One XML file being parsed.
+struct SourceFile<'t> {
+    /// The path as given, used in locations.
+    path: PathBuf,
+    /// The directory relative `<include>`s are resolved against.
+    dir: PathBuf,
+    /// The file's text.
+    text: &'t str,
+    /// Whether the file declares a version before 2.0.0 and gets Mitsuba's in-memory upgrade.
+    upgrade: bool,
+    /// The last position mapped to a location, as `(byte offset, line, column)`: elements are
+    /// visited in document order, so mapping continues from there in linear total time.
+    cursor: Cell<(usize, u32, u32)>,
+}
+
+impl<'t> SourceFile<'t> {
+    fn new(path: &Path, text: &'t str) -> Self {
+        SourceFile {
+            path: path.to_path_buf(),
+            dir: path.parent().map(Path::to_path_buf).unwrap_or_default(),
+            text,
+            upgrade: false,
+            cursor: Cell::new((0, 1, 1)),
+        }
+    }
+
+    /// The location of byte offset `pos`, with roxmltree's conventions: 1-based lines, and
+    /// 1-based columns counted in characters.
+    fn location(&self, pos: usize) -> Location {
+        let bytes = self.text.as_bytes();
+        let pos = pos.min(bytes.len());
+        let (cursor_pos, cursor_line, cursor_col) = self.cursor.get();
+        let (start, mut line, mut col) = if pos >= cursor_pos {
+            (cursor_pos, cursor_line, cursor_col)
+        } else {
+            (0, 1, 1)
+        };
+        for &b in bytes.get(start..pos).unwrap_or_default() {
+            if b == b'\n' {
+                line = line.saturating_add(1);
+                col = 1;
+            } else if b & 0xC0 != 0x80 {
+                // Count characters, not UTF-8 continuation bytes.
+                col = col.saturating_add(1);
+            }
+        }
+        self.cursor.set((pos, line, col));
+        Location {
+            file: self.path.clone(),
+            line,
+            col,
+        }
+    }
+
+    /// The location of a node's start.
+    fn node_location(&self, node: Node) -> Location {
+        self.location(node.range().start)
+    }
+}
+
+/// Turns the bytes of a file into text, or explains where it is not UTF-8.
+fn decode_utf8(path: &Path, bytes: Vec<u8>) -> Result<String> {
+    String::from_utf8(bytes).map_err(|e| {
+        let offset = e.utf8_error().valid_up_to();
+        let valid = e.as_bytes().get(..offset).unwrap_or_default();
+        let line = 1 + valid.iter().filter(|&&b| b == b'\n').count();
+        Error::Xml {
+            path: path.to_path_buf(),
+            message: format!(
+                "the file is not valid UTF-8 (invalid byte at line {line}, byte offset {offset})"
+            ),
+        }
+    })
+}
+
+/// Parses `file`'s text as XML, after rejecting absurd nesting or attribute counts.
+fn parse_document<'t>(file: &SourceFile<'t>) -> Result<roxmltree::Document<'t>> {
+    if let Some((pos, problem)) = precheck(file.text) {
+        let location = file.location(pos);
+        return Err(Error::Xml {
+            path: file.path.clone(),
+            message: format!("{problem} (at {}:{})", location.line, location.col),
+        });
+    }
+    roxmltree::Document::parse(file.text).map_err(|e| Error::Xml {
+        path: file.path.clone(),
+        message: e.to_string(),
+    })
+}
+
+/// Scans XML text for an element opened more than [`MAX_XML_DEPTH`] levels deep or with more
+/// than [`MAX_XML_ATTRIBUTES`] attributes, and returns its byte offset and the problem.
+///
+/// This is a cheap pre-check (it follows comments, CDATA, processing instructions and quoted
+/// attribute values, which is exact for well-formed documents); on malformed input it may
+/// give up and return `None`, leaving the diagnosis to the XML parser.
+fn precheck(text: &str) -> Option<(usize, String)> {
+    let mut i = 0usize;
+    let mut depth = 0usize;
+    loop {
+        i += text.get(i..)?.find('<')?;
+        let rest = text.get(i..)?;
+        let skip = if rest.starts_with("<!--") {
+            rest.find("-->")? + 3
+        } else if rest.starts_with("<![CDATA[") {
+            rest.find("]]>")? + 3
+        } else if rest.starts_with("<?") {
+            rest.find("?>")? + 2
+        } else if rest.starts_with("<!") {
+            rest.find('>')? + 1
+        } else if rest.starts_with("</") {
+            depth = depth.saturating_sub(1);
+            rest.find('>')? + 1
+        } else {
+            let (end, attributes) = start_tag_end(rest)?;
+            if attributes > MAX_XML_ATTRIBUTES {
+                let problem = format!("an element has more than {MAX_XML_ATTRIBUTES} attributes");
+                return Some((i, problem));
+            }
+            if end == 0 || rest.as_bytes().get(end - 1) != Some(&b'/') {
+                depth += 1;
+                if depth > MAX_XML_DEPTH {
+                    let problem =
+                        format!("elements are nested more than {MAX_XML_DEPTH} levels deep");
+                    return Some((i, problem));
+                }
+            }
+            end + 1
+        };
+        i += skip;
+    }
+}
+
+/// The offset of the `>` that closes the start tag at the beginning of `tag`, skipping quoted
+/// attribute values, and the number of attributes (`=` signs outside quotes) before it.
+fn start_tag_end(tag: &str) -> Option<(usize, usize)> {
+    let mut quote = None;
+    let mut attributes = 0;
+    for (i, b) in tag.bytes().enumerate() {
+        match (quote, b) {
+            (None, b'"' | b'\'') => quote = Some(b),
+            (None, b'=') => attributes += 1,
+            (None, b'>') => return Some((i, attributes)),
+            (Some(q), _) if q == b => quote = None,
+            _ => {}
+        }
+    }
+    None
+}
+
+/// The canonical form of a path for cycle detection (the path itself if it does not exist).
+fn include_key(path: &Path) -> PathBuf {
+    std::fs::canonicalize(path).unwrap_or_else(|_| path.to_path_buf())
+}
+
+/// An element with its attributes upgraded (for old files) and `$`-substituted.
+struct Elem<'a, 'input> {
+    node: Node<'a, 'input>,
+    tag: String,
+    attrs: Vec<(String, String)>,
+    location: Location,
+    /// `<tag type=".." id=".." name="..">`, for messages.
+    desc: String,
+}
+
+impl Elem<'_, '_> {
+    /// The value of attribute `name`, if present.
+    fn get(&self, name: &str) -> Option<&str> {
+        self.attrs
+            .iter()
+            .find(|(key, _)| key == name)
+            .map(|(_, value)| value.as_str())
+    }
+
+    /// An error located at this element.
+    fn error(&self, message: impl Into<String>) -> Error {
+        Error::scene(&self.location, message)
+    }
+
+    /// Rejects attributes other than `allowed`.
+    fn check_attrs(&self, allowed: &[&str]) -> Result<()> {
+        match self
+            .attrs
+            .iter()
+            .find(|(key, _)| !allowed.contains(&key.as_str()))
+        {
+            Some((key, _)) => Err(self.error(format!(
+                "unexpected attribute \"{key}\" in {} (allowed: {})",
+                self.desc,
+                allowed.join(", ")
+            ))),
+            None => Ok(()),
+        }
+    }
+
+    /// The value of attribute `name`, which must be present.
+    fn require(&self, name: &str) -> Result<&str> {
+        self.get(name)
+            .ok_or_else(|| self.error(format!("missing attribute \"{name}\" in {}", self.desc)))
+    }
+
+    /// The `name` attribute of a property, which must be present and valid.
+    fn property_name(&self) -> Result<String> {
+        let name = self.require("name")?;
+        self.check_name(name)?;
+        Ok(name.to_string())
+    }
+
+    /// Checks a parameter name (`name` attribute), as Mitsuba does.
+    fn check_name(&self, name: &str) -> Result<()> {
+        if name.is_empty() {
+            Err(self.error(format!("empty name in {}", self.desc)))
+        } else if name.starts_with('_') {
+            Err(self.error(format!(
+                "invalid name \"{name}\" in {}: leading underscores are reserved",
+                self.desc
+            )))
+        } else {
+            Ok(())
+        }
+    }
+
+    /// Checks an identifier (`id` attribute), as Mitsuba does.
+    fn check_id(&self, id: &str) -> Result<()> {
+        if id.is_empty() {
+            Err(self.error(format!("empty id in {}", self.desc)))
+        } else if id.starts_with('_') {
+            Err(self.error(format!(
+                "invalid id \"{id}\" in {}: leading underscores are reserved",
+                self.desc
+            )))
+        } else {
+            Ok(())
+        }
+    }
+
+    /// Parses attribute `name` as a finite float.
+    fn float_attr(&self, name: &str) -> Result<f64> {
+        let text = self.require(name)?;
+        parse_f64(text).map_err(|m| self.error(format!("{m} in {}", self.desc)))
+    }
+
+    /// Parses a 3-vector given either as `value="a"` / `value="x y z"` or as `x`, `y`, `z`
+    /// attributes, each defaulting to `default` (Mitsuba also treats an empty one as absent).
+    fn xyz(&self, default: f64) -> Result<DVec3> {
+        if let Some(value) = self.get("value") {
+            if ["x", "y", "z"].iter().any(|k| self.get(k).is_some()) {
+                return Err(self.error(format!(
+                    "the \"value\" attribute cannot be mixed with \"x\"/\"y\"/\"z\" in {}",
+                    self.desc
+                )));
+            }
+            let numbers = self.numbers(value)?;
+            return match numbers.as_slice() {
+                [v] => Ok(DVec3::splat(*v)),
+                [x, y, z] => Ok(DVec3::new(*x, *y, *z)),
+                _ => Err(self.error(format!(
+                    "\"value\" must have 1 or 3 components, found {} in {}",
+                    numbers.len(),
+                    self.desc
+                ))),
+            };
+        }
+        let mut v = [default; 3];
+        for (slot, key) in v.iter_mut().zip(["x", "y", "z"]) {
+            match self.get(key) {
+                Some(text) if !text.is_empty() => {
+                    *slot =
+                        parse_f64(text).map_err(|m| self.error(format!("{m} in {}", self.desc)))?;
+                }
+                _ => {}
+            }
+        }
+        Ok(DVec3::from_array(v))
+    }
+
+    /// Parses a list of finite floats separated by whitespace and/or commas.
+    fn numbers(&self, text: &str) -> Result<Vec<f64>> {
+        tokenize(text)
+            .map(|token| parse_f64(token).map_err(|m| self.error(format!("{m} in {}", self.desc))))
+            .collect()
+    }
+
+    /// Parses attribute `name` as exactly three numbers (for `<lookat>`).
+    fn vec3_attr(&self, name: &str) -> Result<DVec3> {
+        let numbers = self.numbers(self.require(name)?)?;
+        match numbers.as_slice() {
+            [x, y, z] => Ok(DVec3::new(*x, *y, *z)),
+            _ => Err(self.error(format!(
+                "attribute \"{name}\" must have exactly 3 components, found {} in {}",
+                numbers.len(),
+                self.desc
+            ))),
+        }
+    }
+}
+
+/// Splits a list of numbers at whitespace and commas.
+fn tokenize(text: &str) -> impl Iterator<Item = &str> {
+    text.split(|c: char| c == ',' || c.is_whitespace())
+        .filter(|token| !token.is_empty())
+}
+
+/// Parses a finite `f64` (surrounding whitespace allowed).
+fn parse_f64(text: &str) -> std::result::Result<f64, String> {
+    match text.trim().parse::<f64>() {
+        Ok(v) if v.is_finite() => Ok(v),
+        Ok(_) => Err(format!(
+            "non-finite floating point value \"{}\"",
+            shorten(text)
+        )),
+        Err(_) => Err(format!(
+            "could not parse floating point value \"{}\"",
+            shorten(text)
+        )),
+    }
+}
+
+/// Parses an `i64` (surrounding whitespace allowed).
+fn parse_i64(text: &str) -> std::result::Result<i64, String> {
+    text.trim()
+        .parse::<i64>()
+        .map_err(|_| format!("could not parse integer value \"{}\"", shorten(text)))
+}
+
+/// Cuts long attribute values down for messages.
+fn shorten(text: &str) -> Cow<'_, str> {
+    const MAX: usize = 60;
+    match text.char_indices().nth(MAX) {
+        Some((cut, _)) => Cow::Owned(format!("{}...", text.get(..cut).unwrap_or_default())),
+        None => Cow::Borrowed(text),
+    }
+}
+
+/// `<tag type=".." id=".." name=".." filename="..">`: the element as messages name it.
+fn describe<'s>(tag: &str, attrs: impl Iterator<Item = (&'s str, &'s str)> + Clone) -> String {
+    let mut desc = format!("<{tag}");
+    for key in ["type", "id", "name", "filename"] {
+        if let Some((_, value)) = attrs.clone().find(|(k, _)| *k == key) {
+            desc.push_str(&format!(" {key}=\"{}\"", shorten(value)));
+        }
+    }
+    desc.push('>');
+    desc
+}
+
+/// Mitsuba's upgrade of pre-2.0 parameter names: `camelCase` becomes `camel_case`, with the
+/// same quirks as Mitsuba's loop (a run of capitals after a lowercase letter is lowered).
+fn camel_to_snake(name: &str) -> String {
+    let mut bytes = name.as_bytes().to_vec();
+    let mut i = 0;
+    while i + 1 < bytes.len() {
+        let lower = bytes.get(i).is_some_and(u8::is_ascii_lowercase);
+        let upper_next = bytes.get(i + 1).is_some_and(u8::is_ascii_uppercase);
+        if lower && upper_next {
+            bytes.insert(i + 1, b'_');
+            i += 2;
+            while let Some(b) = bytes.get_mut(i) {
+                if !b.is_ascii_uppercase() {
+                    break;
+                }
+                b.make_ascii_lowercase();
+                i += 1;
+            }
+        }
+        i += 1;
+    }
+    // Only ASCII bytes were inserted or changed, so this is still UTF-8.
+    String::from_utf8(bytes).unwrap_or_else(|_| name.to_string())
+}
+
+/// Parses a version `"major.minor.patch"` as Mitsuba does.
+fn parse_version(text: &str) -> Option<(u32, u32, u32)> {
+    let mut parts = text
+        .split(['.', ' '])
+        .filter(|p| !p.is_empty())
+        .map(|p| p.parse::<u32>().ok());
+    let version = (parts.next()??, parts.next()??, parts.next()??);
+    match parts.next() {
+        None => Some(version),
+        Some(_) => None,
+    }
+}
+
+/// The properties and children of an object under construction.
+#[derive(Default)]
+struct Body {
+    properties: Vec<Property>,
+    children: Vec<Child>,
+    /// Names used so far by properties and named children, with where.
+    names: HashMap<String, Location>,
+}
+
+impl Body {
+    /// Records that `name` is used at `elem`; each name may be used once per object.
+    fn claim(&mut self, name: &str, elem: &Elem, parent_desc: &str) -> Result<()> {
+        if let Some(previous) = self.names.get(name) {
+            return Err(elem.error(format!(
+                "duplicate name \"{name}\" in {parent_desc}: {} repeats the name used at {previous}",
+                elem.desc
+            )));
+        }
+        self.names.insert(name.to_string(), elem.location.clone());
+        Ok(())
+    }
+
+    fn add_property(&mut self, property: Property, elem: &Elem, parent_desc: &str) -> Result<()> {
+        self.claim(&property.name, elem, parent_desc)?;
+        self.properties.push(property);
+        Ok(())
+    }
+
+    fn add_child(&mut self, child: Child, elem: &Elem, parent_desc: &str) -> Result<()> {
+        if let Some(name) = &child.name {
+            self.claim(name, elem, parent_desc)?;
+        }
+        self.children.push(child);
+        Ok(())
+    }
+}
+
+impl Loader {
+    fn new(overrides: &[(String, String)]) -> Self {
+        Loader {
+            params: overrides.iter().cloned().collect(),
+            ids: HashMap::new(),
+            include_stack: Vec::new(),
+            substitution_budget: SUBSTITUTION_BUDGET,
+        }
+    }
+
+    /// Replaces every `$name` in `value` (the longest run of `[A-Za-z0-9_]` after the `$`).
+    fn substitute<'v>(&mut self, value: &'v str) -> std::result::Result<Cow<'v, str>, String> {
+        if !value.contains('$') {
+            return Ok(Cow::Borrowed(value));
+        }
+        let mut out = String::with_capacity(value.len());
+        let mut rest = value;
+        while let Some((before, after)) = rest.split_once('$') {
+            out.push_str(before);
+            let len = after
+                .bytes()
+                .take_while(|b| b.is_ascii_alphanumeric() || *b == b'_')
+                .count();
+            // The name is ASCII, so `len` is a character boundary.
+            let (name, tail) = after.split_at_checked(len).unwrap_or((after, ""));
+            if name.is_empty() {
+                return Err(format!(
+                    "\"$\" not followed by a parameter name in \"{}\"",
+                    shorten(value)
+                ));
+            }
+            let Some(replacement) = self.params.get(name) else {
+                return Err(format!("undefined parameter \"${name}\""));
+            };
+            out.push_str(replacement);
+            if out.len() > self.substitution_budget {
+                return Err(format!(
+                    "$-substitution produces more than {} MiB of text",
+                    SUBSTITUTION_BUDGET >> 20
+                ));
+            }
+            rest = tail;
+        }
+        out.push_str(rest);
+        self.substitution_budget = self.substitution_budget.saturating_sub(out.len());
+        Ok(Cow::Owned(out))
+    }
+
+    /// Reads an element: its tag and attributes, upgraded for old files and substituted.
+    fn element<'a, 'input>(
+        &mut self,
+        file: &SourceFile,
+        node: Node<'a, 'input>,
+    ) -> Result<Elem<'a, 'input>> {
+        let location = file.node_location(node);
+        let raw_tag = node.tag_name().name();
+        let raw_desc = || describe(raw_tag, node.attributes().map(|a| (a.name(), a.value())));
+        if node.tag_name().namespace().is_some() {
+            return Err(Error::scene(
+                &location,
+                format!("namespaced element {} is not supported", raw_desc()),
+            ));
+        }
+        let tag = if file.upgrade && raw_tag == "lookAt" {
+            "lookat".to_string()
+        } else {
+            raw_tag.to_string()
+        };
+        let mut attrs = Vec::new();
+        for attr in node.attributes() {
+            if attr.namespace().is_some() {
+                return Err(Error::scene(
+                    &location,
+                    format!(
+                        "unexpected namespaced attribute \"{}\" in {}",
+                        attr.name(),
+                        raw_desc()
+                    ),
+                ));
+            }
+            let name = attr.name();
+            let raw = if file.upgrade {
+                upgrade_attribute(node, &tag, name, attr.value())
+            } else {
+                Cow::Borrowed(attr.value())
+            };
+            let value = self.substitute(&raw).map_err(|message| {
+                Error::scene(
+                    &location,
+                    format!("{message} in attribute \"{name}\" of {}", raw_desc()),
+                )
+            })?;
+            attrs.push((name.to_string(), value.into_owned()));
+        }
+        let desc = describe(&tag, attrs.iter().map(|(k, v)| (k.as_str(), v.as_str())));
+        Ok(Elem {
+            node,
+            tag,
+            attrs,
+            location,
+            desc,
+        })
+    }
+
+    /// Loads the `<scene>` root of the main file.
+    fn load_root(&mut self, file: &mut SourceFile, root: Node) -> Result<Object> {
+        let elem = self.element(file, root)?;
+        if elem.tag != "scene" {
+            return Err(elem.error(format!(
+                "the root element must be <scene>, found {}",
+                elem.desc
+            )));
+        }
+        elem.check_attrs(&["version"])?;
+        let version = elem
+            .get("version")
+            .ok_or_else(|| elem.error("missing attribute \"version\" in root element <scene>"))?;
+        file.upgrade = self.check_version(&elem, version)?;
+        let mut body = Body::default();
+        self.parse_children(file, root, "<scene>", &mut body, 1)?;
+        Ok(Object {
+            tag: "scene".to_string(),
+            plugin: String::new(),
+            id: None,
+            properties: body.properties,
+            children: body.children,
+            location: elem.location,
+        })
+    }
+
+    /// Parses a scene version; returns whether the file needs the pre-2.0 upgrade.
+    fn check_version(&self, elem: &Elem, version: &str) -> Result<bool> {
+        let parsed = parse_version(version).ok_or_else(|| {
+            elem.error(format!(
+                "could not parse version number \"{}\" in {} (expected major.minor.patch)",
+                shorten(version),
+                elem.desc
+            ))
+        })?;
+        Ok(parsed < (2, 0, 0))
+    }
+
+    /// Parses the child nodes of `parent` into `body`. `depth` is the nesting depth of the
+    /// children.
+    fn parse_children(
+        &mut self,
+        file: &SourceFile,
+        parent: Node,
+        parent_desc: &str,
+        body: &mut Body,
+        depth: usize,
+    ) -> Result<()> {
+        for child in parent.children() {
+            match child.node_type() {
+                NodeType::Element => self.parse_child(file, child, parent_desc, body, depth)?,
+                NodeType::Text => check_text(file, child, parent_desc)?,
+                NodeType::Root | NodeType::Comment | NodeType::PI => {}
+            }
+        }
+        Ok(())
+    }
+
+    /// Parses one element inside an object (or inside `<scene>`) into `body`.
+    fn parse_child(
+        &mut self,
+        file: &SourceFile,
+        node: Node,
+        parent_desc: &str,
+        body: &mut Body,
+        depth: usize,
+    ) -> Result<()> {
+        if depth > MAX_NESTING_DEPTH {
+            return Err(Error::scene(
+                &file.node_location(node),
+                format!("elements are nested more than {MAX_NESTING_DEPTH} levels deep"),
+            ));
+        }
+        let elem = self.element(file, node)?;
+        let tag = elem.tag.as_str();
+        if OBJECT_TAGS.contains(&tag) {
+            let child = self.parse_object(file, &elem, depth)?;
+            return body.add_child(child, &elem, parent_desc);
+        }
+        match tag {
+            "ref" => {
+                let child = self.parse_ref(file, &elem)?;
+                body.add_child(child, &elem, parent_desc)
+            }
+            "alias" => self.parse_alias(file, &elem),
+            "default" => self.parse_default(file, &elem),
+            "include" => self.parse_include(file, &elem, parent_desc, body, depth),
+            "integer" | "float" | "boolean" | "string" | "rgb" | "point" | "vector" => {
+                ensure_leaf(file, &elem)?;
+                let property = Property {
+                    name: elem.property_name()?,
+                    value: parse_value(&elem)?,
+                    location: elem.location.clone(),
+                };
+                body.add_property(property, &elem, parent_desc)
+            }
+            "transform" => {
+                let property = self.parse_transform(file, &elem)?;
+                body.add_property(property, &elem, parent_desc)
+            }
+            "scene" => Err(elem.error(format!(
+                "{} can only be the root element (found in {parent_desc})",
+                elem.desc
+            ))),
+            _ if TRANSFORM_OPS.contains(&tag) => Err(elem.error(format!(
+                "transform operation {} outside of a <transform> (in {parent_desc})",
+                elem.desc
+            ))),
+            _ => {
+                let kind = if elem.get("type").is_some() {
+                    "object "
+                } else if elem.get("name").is_some() {
+                    "property "
+                } else {
+                    ""
+                };
+                Err(elem.error(format!("unknown {kind}tag {} in {parent_desc}", elem.desc)))
+            }
+        }
+    }
+
+    /// Parses `<shape type=".." id=".." name="..">...</shape>` and friends.
+    fn parse_object(&mut self, file: &SourceFile, elem: &Elem, depth: usize) -> Result<Child> {
+        elem.check_attrs(&["type", "id", "name"])?;
+        let plugin = elem.require("type")?;
+        if plugin.is_empty() {
+            return Err(elem.error(format!("empty \"type\" attribute in {}", elem.desc)));
+        }
+        let name = match elem.get("name") {
+            Some(name) => {
+                elem.check_name(name)?;
+                Some(name.to_string())
+            }
+            None => None,
+        };
+        let id = match elem.get("id") {
+            Some(id) => {
+                self.declare_id(elem, id)?;
+                Some(id.to_string())
+            }
+            None => None,
+        };
+        let mut body = Body::default();
+        self.parse_children(file, elem.node, &elem.desc, &mut body, depth + 1)?;
+        let object = Arc::new(Object {
+            tag: elem.tag.clone(),
+            plugin: plugin.to_string(),
+            id: id.clone(),
+            properties: body.properties,
+            children: body.children,
+            location: elem.location.clone(),
+        });
+        if let Some(id) = id {
+            self.ids.insert(
+                id,
+                IdEntry::Done(Arc::clone(&object), elem.location.clone()),
+            );
+        }
+        Ok(Child { name, object })
+    }
+
+    /// Reserves a new id at `elem` (it becomes usable once its object is complete).
+    fn declare_id(&mut self, elem: &Elem, id: &str) -> Result<()> {
+        elem.check_id(id)?;
+        if let Some(previous) = self.ids.get(id) {
+            return Err(elem.error(format!(
+                "{} has duplicate id \"{id}\" (first declared at {})",
+                elem.desc,
+                previous.location()
+            )));
+        }
+        self.ids
+            .insert(id.to_string(), IdEntry::Pending(elem.location.clone()));
+        Ok(())
+    }
+
+    /// The complete object declared with `id`, for a `<ref>` or `<alias>` at `elem`.
+    fn lookup(&self, elem: &Elem, id: &str) -> Result<Arc<Object>> {
+        match self.ids.get(id) {
+            Some(IdEntry::Done(object, _)) => Ok(Arc::clone(object)),
+            Some(IdEntry::Pending(location)) => Err(elem.error(format!(
+                "{} refers to the enclosing object declared at {location}",
+                elem.desc
+            ))),
+            None => Err(elem.error(format!(
+                "{} refers to unknown id \"{id}\" (objects must be declared before they are referenced)",
+                elem.desc
+            ))),
+        }
+    }
+
+    /// Parses `<ref id=".." name=".."/>`.
+    fn parse_ref(&mut self, file: &SourceFile, elem: &Elem) -> Result<Child> {
+        ensure_leaf(file, elem)?;
+        elem.check_attrs(&["id", "name"])?;
+        let id = elem.require("id")?;
+        let name = match elem.get("name") {
+            Some(name) => {
+                elem.check_name(name)?;
+                Some(name.to_string())
+            }
+            None => None,
+        };
+        let object = self.lookup(elem, id)?;
+        Ok(Child { name, object })
+    }
+
+    /// Parses `<alias id="existing" as="new"/>`: `new` becomes another id of the same object.
+    fn parse_alias(&mut self, file: &SourceFile, elem: &Elem) -> Result<()> {
+        ensure_leaf(file, elem)?;
+        elem.check_attrs(&["id", "as"])?;
+        let object = self.lookup(elem, elem.require("id")?)?;
+        let new_id = elem.require("as")?;
+        self.declare_id(elem, new_id)?;
+        self.ids.insert(
+            new_id.to_string(),
+            IdEntry::Done(object, elem.location.clone()),
+        );
+        Ok(())
+    }
+
+    /// Parses `<default name=".." value=".."/>`; the first definition of a name wins, and
+    /// overrides always win.
+    fn parse_default(&mut self, file: &SourceFile, elem: &Elem) -> Result<()> {
+        ensure_leaf(file, elem)?;
+        elem.check_attrs(&["name", "value"])?;
+        let name = elem.require("name")?;
+        let value = elem.require("value")?;
+        if name.is_empty() || !name.bytes().all(|b| b.is_ascii_alphanumeric() || b == b'_') {
+            return Err(elem.error(format!(
+                "invalid parameter name \"{}\" in {}: use letters, digits and '_'",
+                shorten(name),
+                elem.desc
+            )));
+        }
+        self.params
+            .entry(name.to_string())
+            .or_insert_with(|| value.to_string());
+        Ok(())
+    }
+
+    /// Parses `<include filename=".."/>`: the file's `<scene>` children are spliced into
+    /// `body` (a file whose root is not `<scene>` contributes that one element, as in
+    /// Mitsuba).
+    fn parse_include(
+        &mut self,
+        file: &SourceFile,
+        elem: &Elem,
+        parent_desc: &str,
+        body: &mut Body,
+        depth: usize,
+    ) -> Result<()> {
+        ensure_leaf(file, elem)?;
+        elem.check_attrs(&["filename"])?;
+        let filename = elem.require("filename")?;
+        if filename.is_empty() {
+            return Err(elem.error(format!("empty \"filename\" in {}", elem.desc)));
+        }
+        let path = file.dir.join(filename);
+        if self.include_stack.len() > MAX_INCLUDE_DEPTH {
+            return Err(elem.error(format!(
+                "{} exceeds the include depth limit of {MAX_INCLUDE_DEPTH}",
+                elem.desc
+            )));
+        }
+        let key = include_key(&path);
+        if self.include_stack.iter().any(|frame| frame.key == key) {
+            let chain: Vec<String> = self
+                .include_stack
+                .iter()
+                .map(|frame| frame.shown.display().to_string())
+                .chain(std::iter::once(path.display().to_string()))
+                .collect();
+            return Err(elem.error(format!("cyclic include: {}", chain.join(" -> "))));
+        }
+        let bytes = std::fs::read(&path).map_err(|e| {
+            elem.error(format!(
+                "cannot read included file \"{}\": {e}",
+                path.display()
+            ))
+        })?;
+        let text = decode_utf8(&path, bytes)?;
+        let mut included = SourceFile::new(&path, &text);
+        let doc = parse_document(&included)?;
+        let root = doc.root_element();
+        self.include_stack.push(IncludeFrame { key, shown: path });
+        let result = self.parse_included(&mut included, root, parent_desc, body, depth + 1);
+        self.include_stack.pop();
+        result
+    }
+
+    /// Splices the root of an included file into `body`.
+    fn parse_included(
+        &mut self,
+        included: &mut SourceFile,
+        root: Node,
+        parent_desc: &str,
+        body: &mut Body,
+        depth: usize,
+    ) -> Result<()> {
+        if root.tag_name().name() != "scene" || root.tag_name().namespace().is_some() {
+            return self.parse_child(included, root, parent_desc, body, depth);
+        }
+        let root_elem = self.element(included, root)?;
+        root_elem.check_attrs(&["version"])?;
+        if let Some(version) = root_elem.get("version") {
+            included.upgrade = self.check_version(&root_elem, version)?;
+        }
+        self.parse_children(included, root, parent_desc, body, depth)
+    }
+
+    /// Parses `<transform name="..">` and its operations into a property.
+    fn parse_transform(&mut self, file: &SourceFile, elem: &Elem) -> Result<Property> {
+        elem.check_attrs(&["name"])?;
+        let name = elem.property_name()?;
+        let mut matrix = DMat4::IDENTITY;
+        for child in elem.node.children() {
+            match child.node_type() {
+                NodeType::Element => {
+                    let op = self.element(file, child)?;
+                    ensure_leaf(file, &op)?;
+                    let m = transform_op(&op, &elem.desc)?;
+                    // Each operation applies after the previous ones, as in Mitsuba.
+                    matrix = m * matrix;
+                    if !matrix.is_finite() {
+                        return Err(op.error(format!(
+                            "{} makes the transform {} non-finite",
+                            op.desc, elem.desc
+                        )));
+                    }
+                }
+                NodeType::Text => check_text(file, child, &elem.desc)?,
+                NodeType::Root | NodeType::Comment | NodeType::PI => {}
+            }
+        }
+        Ok(Property {
+            name,
+            value: Value::Transform(matrix),
+            location: elem.location.clone(),
+        })
+    }
+}
+
+/// Mitsuba's in-memory upgrade of one attribute of a pre-2.0 file.
+fn upgrade_attribute<'v>(node: Node, tag: &str, name: &str, value: &'v str) -> Cow<'v, str> {
+    match name {
+        "name" if tag != "default" => {
+            let upgraded = camel_to_snake(value);
+            let parent_is_diffuse = node.parent_element().is_some_and(|p| {
+                p.tag_name().name() == "bsdf" && p.attribute("type") == Some("diffuse")
+            });
+            if parent_is_diffuse && upgraded == "diffuse_reflectance" {
+                Cow::Borrowed("reflectance")
+            } else if upgraded == value {
+                Cow::Borrowed(value)
+            } else {
+                Cow::Owned(upgraded)
+            }
+        }
+        "id" if value.starts_with('_') => Cow::Owned(format!("ID{value}__UPGR")),
+        _ => Cow::Borrowed(value),
+    }
+}
+
+/// Rejects child elements and text inside an element that takes none.
+fn ensure_leaf(file: &SourceFile, elem: &Elem) -> Result<()> {
+    for child in elem.node.children() {
+        match child.node_type() {
+            NodeType::Element => {
+                let tag = child.tag_name().name();
+                let desc = describe(tag, child.attributes().map(|a| (a.name(), a.value())));
+                return Err(Error::scene(
+                    &file.node_location(child),
+                    format!("{desc} cannot appear inside {}", elem.desc),
+                ));
+            }
+            NodeType::Text => check_text(file, child, &elem.desc)?,
+            NodeType::Root | NodeType::Comment | NodeType::PI => {}
+        }
+    }
+    Ok(())
+}
+
+/// Rejects a text node that is not whitespace only.
+fn check_text(file: &SourceFile, node: Node, parent_desc: &str) -> Result<()> {
+    let text = node.text().unwrap_or_default();
+    let trimmed = text.trim();
+    if trimmed.is_empty() {
+        return Ok(());
+    }
+    // Point at the first non-blank character of the source text, when it can be found.
+    let range = node.range();
+    let start = file
+        .text
+        .get(range.clone())
+        .and_then(|source| source.find(|c: char| !c.is_whitespace()))
+        .map_or(range.start, |offset| range.start + offset);
+    Err(Error::scene(
+        &file.location(start),
+        format!("unexpected text \"{}\" in {parent_desc}", shorten(trimmed)),
+    ))
+}
+
+/// Parses the value of a simple property element (everything but `<transform>`).
+fn parse_value(elem: &Elem) -> Result<Value> {
+    let located = |m: String| elem.error(format!("{m} in {}", elem.desc));
+    match elem.tag.as_str() {
+        "point" | "vector" => {
+            elem.check_attrs(&["name", "value", "x", "y", "z"])?;
+            let v = elem.xyz(0.0)?;
+            Ok(if elem.tag == "point" {
+                Value::Point(v)
+            } else {
+                Value::Vector(v)
+            })
+        }
+        tag => {
+            elem.check_attrs(&["name", "value"])?;
+            let text = elem.require("value")?;
+            match tag {
+                "integer" => Ok(Value::Integer(parse_i64(text).map_err(located)?)),
+                "float" => Ok(Value::Float(parse_f64(text).map_err(located)?)),
+                "boolean" => match text.to_ascii_lowercase().as_str() {
+                    "true" => Ok(Value::Boolean(true)),
+                    "false" => Ok(Value::Boolean(false)),
+                    _ => Err(elem.error(format!(
+                        "could not parse boolean value \"{}\" in {}: must be \"true\" or \"false\"",
+                        shorten(text),
+                        elem.desc
+                    ))),
+                },
+                "rgb" => {
+                    let numbers = elem.numbers(text)?;
+                    match numbers.as_slice() {
+                        [v] => Ok(Value::Rgb(DVec3::splat(*v))),
+                        [r, g, b] => Ok(Value::Rgb(DVec3::new(*r, *g, *b))),
+                        _ => Err(elem.error(format!(
+                            "<rgb> requires one or three values, found {} in {}",
+                            numbers.len(),
+                            elem.desc
+                        ))),
+                    }
+                }
+                _ => Ok(Value::String(text.to_string())),
+            }
+        }
+    }
+}
+
+/// The matrix of one operation inside a `<transform>`.
+fn transform_op(op: &Elem, transform_desc: &str) -> Result<DMat4> {
+    match op.tag.as_str() {
+        "translate" => {
+            op.check_attrs(&["x", "y", "z", "value"])?;
+            Ok(DMat4::from_translation(op.xyz(0.0)?))
+        }
+        "scale" => {
+            op.check_attrs(&["x", "y", "z", "value"])?;
+            Ok(DMat4::from_scale(op.xyz(1.0)?))
+        }
+        "rotate" => {
+            op.check_attrs(&["x", "y", "z", "value", "angle"])?;
+            let axis = op.xyz(0.0)?;
+            let angle = op.float_attr("angle")?;
+            let largest = axis.abs().max_element();
+            if largest == 0.0 {
+                return Err(op.error(format!("{} has a zero rotation axis", op.desc)));
+            }
+            // Dividing by the largest component first keeps huge axes from overflowing.
+            let axis = (axis / largest).normalize();
+            Ok(DMat4::from_axis_angle(axis, angle.to_radians()))
+        }
+        "matrix" => {
+            op.check_attrs(&["value"])?;
+            let numbers = op.numbers(op.require("value")?)?;
+            if let Ok(rows) = <[f64; 16]>::try_from(numbers.as_slice()) {
+                Ok(DMat4::from_cols_array(&rows).transpose())
+            } else if let Ok(rows) = <[f64; 9]>::try_from(numbers.as_slice()) {
+                Ok(DMat4::from_mat3(DMat3::from_cols_array(&rows).transpose()))
+            } else {
+                Err(op.error(format!(
+                    "<matrix> requires 16 (or 9) values, found {} in {}",
+                    numbers.len(),
+                    op.desc
+                )))
+            }
+        }
+        "lookat" => {
+            op.check_attrs(&["origin", "target", "up"])?;
+            let origin = op.vec3_attr("origin")?;
+            let target = op.vec3_attr("target")?;
+            let up = match op.get("up") {
+                Some(_) => op.vec3_attr("up")?,
+                None => DVec3::ZERO,
+            };
+            look_at(origin, target, up).map_err(|m| op.error(format!("{m} in {}", op.desc)))
+        }
+        _ => Err(op.error(format!(
+            "unexpected {} inside {transform_desc}: only translate, rotate, scale, matrix and lookat are allowed",
+            op.desc
+        ))),
+    }
+}
+
+/// Mitsuba's `look_at`: columns (left, new_up, dir, origin). A zero `up` picks one, as
+/// Mitsuba does.
+fn look_at(origin: DVec3, target: DVec3, up: DVec3) -> std::result::Result<DMat4, String> {
+    let dir = safe_normalize(target - origin)
+        .ok_or_else(|| "target coincides with origin".to_string())?;
+    let up = match safe_normalize(up) {
+        Some(up) => up,
+        None => coordinate_system(dir).0,
+    };
+    let left = up.cross(dir);
+    // A relative test: a unit `up` (nearly) parallel to the unit `dir` leaves no frame.
+    if !left.is_finite() || left.length() <= 1e-10 {
+        return Err("up vector is parallel to the viewing direction".to_string());
+    }
+    let left = left.normalize();
+    let new_up = dir.cross(left);
+    let m = DMat4::from_cols(
+        left.extend(0.0),
+        new_up.extend(0.0),
+        dir.extend(0.0),
+        origin.extend(1.0),
+    );
+    if m.is_finite() {
+        Ok(m)
+    } else {
+        Err("non-finite look-at transform".to_string())
+    }
+}
+
+/// `v / |v|`, or `None` if `v` is zero or not finite.
+fn safe_normalize(v: DVec3) -> Option<DVec3> {
+    let largest = v.abs().max_element();
+    if !largest.is_finite() || largest <= 0.0 {
+        return None;
+    }
+    let v = (v / largest).normalize();
+    v.is_finite().then_some(v)
+}
+
+/// Two unit vectors completing unit `n` to an orthonormal basis (Duff et al. 2017, the
+/// construction Mitsuba's `coordinate_system` uses).
+fn coordinate_system(n: DVec3) -> (DVec3, DVec3) {
+    let sign = 1.0f64.copysign(n.z);
+    let a = -1.0 / (sign + n.z);
+    let b = n.x * n.y * a;
+    (
+        DVec3::new(1.0 + sign * n.x * n.x * a, sign * b, -sign * n.x),
+        DVec3::new(b, sign + n.y * n.y * a, -n.y),
+    )
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use glam::DVec4;
+    use std::sync::atomic::{AtomicUsize, Ordering};
+    use std::time::{Duration, Instant};
+
+    /// Parses `xml` as if it came from `scene.xml` in the working directory.
+    fn parse(xml: &str) -> Result<Object> {
+        load_str(xml, Path::new("scene.xml"), &[])
+    }
+
+    /// Wraps `body` in a `<scene>`.
+    fn scene(body: &str) -> String {
+        format!("<scene version=\"3.0.0\">{body}</scene>")
+    }
+
+    /// The error message of parsing `xml`, which must fail.
+    fn error(xml: &str) -> String {
+        match parse(xml) {
+            Ok(object) => panic!("expected an error, got {object:?}"),
+            Err(e) => e.to_string(),
+        }
+    }
+
+    /// The value of property `name` of `object`.
+    fn prop<'o>(object: &'o Object, name: &str) -> &'o Value {
+        &object
+            .properties
+            .iter()
+            .find(|p| p.name == name)
+            .unwrap_or_else(|| panic!("no property {name}"))
+            .value
+    }
+
+    /// The first child object of the scene.
+    fn first(object: &Object) -> &Object {
+        &object.children[0].object
+    }
+
+    /// The matrix of `<transform name="t">` with `ops` inside a shape.
+    fn transform(ops: &str) -> DMat4 {
+        let xml = scene(&format!(
+            "<shape type=\"a\"><transform name=\"t\">{ops}</transform></shape>"
+        ));
+        let root = parse(&xml).unwrap();
+        match prop(first(&root), "t") {
+            Value::Transform(m) => *m,
+            other => panic!("not a transform: {other:?}"),
+        }
+    }
+
+    fn transform_error(ops: &str) -> String {
+        error(&scene(&format!(
+            "<shape type=\"a\"><transform name=\"t\">{ops}</transform></shape>"
+        )))
+    }
+
+    fn assert_mat(actual: DMat4, expected: DMat4) {
+        assert!(
+            actual.abs_diff_eq(expected, 1e-12),
+            "expected {expected:?}, got {actual:?}"
+        );
+    }
+
+    fn assert_vec(actual: DVec3, expected: DVec3) {
+        assert!(
+            actual.abs_diff_eq(expected, 1e-12),
+            "expected {expected:?}, got {actual:?}"
+        );
+    }
+
+    /// A scratch directory under the system temp dir, removed on drop.
+    struct TempDir(PathBuf);
+
+    impl TempDir {
+        fn new(name: &str) -> Self {
+            static COUNTER: AtomicUsize = AtomicUsize::new(0);
+            let n = COUNTER.fetch_add(1, Ordering::Relaxed);
+            let dir = std::env::temp_dir().join(format!(
+                "penumbra-xml-test-{}-{name}-{n}",
+                std::process::id()
+            ));
+            let _ = std::fs::remove_dir_all(&dir);
+            std::fs::create_dir_all(&dir).unwrap();
+            TempDir(dir)
+        }
+
+        fn write(&self, relative: &str, contents: impl AsRef<[u8]>) -> PathBuf {
+            let path = self.0.join(relative);
+            if let Some(parent) = path.parent() {
+                std::fs::create_dir_all(parent).unwrap();
+            }
+            std::fs::write(&path, contents).unwrap();
+            path
+        }
+    }
+
+    impl Drop for TempDir {
+        fn drop(&mut self) {
+            let _ = std::fs::remove_dir_all(&self.0);
+        }
+    }
+
+    #[test]
+    fn parses_every_property_type() {
+        let xml = scene(
+            r#"
+            <shape type="sphere" id="s">
+                <integer name="i" value=" -42 "/>
+                <float name="f" value="1.5e-3"/>
+                <boolean name="b1" value="TRUE"/>
+                <boolean name="b2" value="false"/>
+                <string name="s" value="hello world"/>
+                <rgb name="c1" value="0.1 0.2 0.3"/>
+                <rgb name="c2" value="0.1,0.2,0.3"/>
+                <rgb name="c3" value="0.1, 0.2 ,0.3"/>
+                <rgb name="c4" value="0.5"/>
+                <point name="p1" x="1" z="3"/>
+                <point name="p2" value="4 5 6"/>
+                <vector name="v1"/>
+                <vector name="v2" value="7,8,9"/>
+                <vector name="v3" value="2"/>
+                <transform name="t"/>
+            </shape>"#,
+        );
+        let root = parse(&xml).unwrap();
+        assert_eq!(root.tag, "scene");
+        assert_eq!(root.plugin, "");
+        let shape = first(&root);
+        assert_eq!(shape.tag, "shape");
+        assert_eq!(shape.plugin, "sphere");
+        assert_eq!(shape.id.as_deref(), Some("s"));
+        assert_eq!(prop(shape, "i"), &Value::Integer(-42));
+        assert_eq!(prop(shape, "f"), &Value::Float(1.5e-3));
+        assert_eq!(prop(shape, "b1"), &Value::Boolean(true));
+        assert_eq!(prop(shape, "b2"), &Value::Boolean(false));
+        assert_eq!(prop(shape, "s"), &Value::String("hello world".into()));
+        for name in ["c1", "c2", "c3"] {
+            assert_eq!(prop(shape, name), &Value::Rgb(DVec3::new(0.1, 0.2, 0.3)));
+        }
+        assert_eq!(prop(shape, "c4"), &Value::Rgb(DVec3::splat(0.5)));
+        assert_eq!(prop(shape, "p1"), &Value::Point(DVec3::new(1.0, 0.0, 3.0)));
+        assert_eq!(prop(shape, "p2"), &Value::Point(DVec3::new(4.0, 5.0, 6.0)));
+        assert_eq!(prop(shape, "v1"), &Value::Vector(DVec3::ZERO));
+        assert_eq!(prop(shape, "v2"), &Value::Vector(DVec3::new(7.0, 8.0, 9.0)));
+        assert_eq!(prop(shape, "v3"), &Value::Vector(DVec3::splat(2.0)));
+        assert_eq!(prop(shape, "t"), &Value::Transform(DMat4::IDENTITY));
+        // Properties keep document order.
+        let names: Vec<&str> = shape.properties.iter().map(|p| p.name.as_str()).collect();
+        assert_eq!(names.first(), Some(&"i"));
+        assert_eq!(names.last(), Some(&"t"));
+        assert_eq!(names.len(), 15);
+    }
+
+    #[test]
+    fn type_names() {
+        let values = [
+            (Value::Integer(1), "integer"),
+            (Value::Float(1.0), "float"),
+            (Value::Boolean(true), "boolean"),
+            (Value::String(String::new()), "string"),
+            (Value::Rgb(DVec3::ZERO), "rgb"),
+            (Value::Point(DVec3::ZERO), "point"),
+            (Value::Vector(DVec3::ZERO), "vector"),
+            (Value::Transform(DMat4::IDENTITY), "transform"),
+        ];
+        for (value, name) in values {
+            assert_eq!(value.type_name(), name);
+        }
+    }
+
+    #[test]
+    fn children_keep_order_names_and_locations() {
+        let xml = "<scene version=\"3.0.0\">\n\
+                   <shape type=\"obj\">\n\
+                   \x20 <bsdf type=\"diffuse\" name=\"bsdf\"/>\n\
+                   \x20 <emitter type=\"area\"/>\n\
+                   \x20 <float name=\"x\" value=\"1\"/>\n\
+                   </shape>\n\
+                   <integrator type=\"path\"/>\n\
+                   </scene>";
+        let root = parse(xml).unwrap();
+        assert_eq!(root.location.line, 1);
+        assert_eq!(root.location.col, 1);
+        assert_eq!(root.location.file, PathBuf::from("scene.xml"));
+        assert_eq!(root.children.len(), 2);
+        let shape = first(&root);
+        assert_eq!(shape.location.line, 2);
+        assert_eq!(shape.children.len(), 2);
+        assert_eq!(shape.children[0].name.as_deref(), Some("bsdf"));
+        assert_eq!(shape.children[0].object.plugin, "diffuse");
+        assert_eq!(shape.children[0].object.location.line, 3);
+        assert_eq!(shape.children[0].object.location.col, 3);
+        assert_eq!(shape.children[1].name, None);
+        assert_eq!(shape.children[1].object.tag, "emitter");
+        assert_eq!(shape.properties[0].location.line, 5);
+        assert_eq!(shape.properties[0].location.col, 3);
+        assert_eq!(root.children[1].object.tag, "integrator");
+        assert_eq!(root.children[1].object.location.line, 7);
+    }
+
+    #[test]
+    fn all_object_tags_are_accepted() {
+        let body: String = OBJECT_TAGS
+            .iter()
+            .map(|tag| format!("<{tag} type=\"x\"/>"))
+            .collect();
+        let root = parse(&scene(&body)).unwrap();
+        let tags: Vec<&str> = root
+            .children
+            .iter()
+            .map(|c| c.object.tag.as_str())
+            .collect();
+        assert_eq!(tags, OBJECT_TAGS);
+    }
+
+    #[test]
+    fn substitutes_defaults_and_overrides() {
+        let xml = scene(
+            r#"<default name="spp" value="16"/>
+               <default name="res" value="64"/>
+               <default name="spp" value="999"/>
+               <default name="both" value="$spp-$res"/>
+               <sampler type="$kind" id="s_$res">
+                   <integer name="sample_count" value="$spp"/>
+                   <integer name="res" value="$res"/>
+                   <string name="both" value="$both"/>
+                   <string name="suffix" value="a$res.b"/>
+               </sampler>"#,
+        );
+        let overrides = vec![
+            ("kind".to_string(), "wrong".to_string()),
+            ("res".to_string(), "128".to_string()),
+            ("kind".to_string(), "independent".to_string()),
+        ];
+        let root = load_str(&xml, Path::new("scene.xml"), &overrides).unwrap();
+        let sampler = first(&root);
+        // The last override of a name wins; overrides beat defaults; the first default wins.
+        assert_eq!(sampler.plugin, "independent");
+        assert_eq!(sampler.id.as_deref(), Some("s_128"));
+        assert_eq!(prop(sampler, "sample_count"), &Value::Integer(16));
+        assert_eq!(prop(sampler, "res"), &Value::Integer(128));
+        assert_eq!(prop(sampler, "both"), &Value::String("16-128".into()));
+        assert_eq!(prop(sampler, "suffix"), &Value::String("a128.b".into()));
+    }
+
+    #[test]
+    fn substitution_errors() {
+        let e = error(&scene(r#"<integer name="a" value="$missing"/>"#));
+        assert!(e.contains("undefined parameter \"$missing\""), "{e}");
+        assert!(e.contains("scene.xml:1:"), "{e}");
+        // The longest identifier is used: `$ab` is not `$a` followed by `b`.
+        let e = error(&scene(
+            r#"<default name="a" value="1"/><integer name="x" value="$ab"/>"#,
+        ));
+        assert!(e.contains("\"$ab\""), "{e}");
+        let e = error(&scene(r#"<string name="x" value="cost: $ 5"/>"#));
+        assert!(e.contains("\"$\" not followed"), "{e}");
+        // Defaults apply to what follows them, as in Mitsuba.
+        let e = error(&scene(
+            r#"<integer name="x" value="$n"/><default name="n" value="1"/>"#,
+        ));
+        assert!(e.contains("undefined parameter \"$n\""), "{e}");
+        // Substitution happens before number parsing.
+        let e = error(&scene(
+            r#"<default name="n" value="3.5"/><integer name="x" value="$n"/>"#,
+        ));
+        assert!(e.contains("could not parse integer value \"3.5\""), "{e}");
+        let e = error(&scene(r#"<default name="a b" value="1"/>"#));
+        assert!(e.contains("invalid parameter name"), "{e}");
+        let e = error(&scene(r#"<default name="a"/>"#));
+        assert!(e.contains("missing attribute \"value\""), "{e}");
+    }
+
+    #[test]
+    fn exponential_substitution_is_bounded() {
+        let mut body = String::from(r#"<default name="p0" value="xxxxxxxxxxxxxxxx"/>"#);
+        for i in 1..12 {
+            let prev = format!("$p{}", i - 1);
+            body.push_str(&format!(
+                r#"<default name="p{i}" value="{}"/>"#,
+                prev.repeat(16)
+            ));
+        }
+        let e = error(&scene(&body));
+        assert!(e.contains("substitution produces more than"), "{e}");
+    }
+
+    #[test]
+    fn resolves_refs_to_the_same_object() {
+        let xml = scene(
+            r#"<bsdf type="diffuse" id="mat"/>
+               <shape type="sphere" id="a">
+                   <texture type="checkerboard" id="tex"/>
+               </shape>
+               <shape type="sphere">
+                   <ref id="mat" name="bsdf"/>
+                   <bsdf type="plastic"><ref id="tex" name="reflectance"/></bsdf>
+                   <ref id="a"/>
+               </shape>
+               <alias id="mat" as="mat2"/>
+               <shape type="cube"><ref id="mat2"/></shape>"#,
+        );
+        let root = parse(&xml).unwrap();
+        let mat = &root.children[0].object;
+        let tex = &root.children[1].object.children[0].object;
+        let user = &root.children[2].object;
+        assert!(Arc::ptr_eq(&user.children[0].object, mat));
+        assert_eq!(user.children[0].name.as_deref(), Some("bsdf"));
+        let inner = &user.children[1].object;
+        assert!(Arc::ptr_eq(&inner.children[0].object, tex));
+        assert_eq!(inner.children[0].name.as_deref(), Some("reflectance"));
+        assert!(Arc::ptr_eq(
+            &user.children[2].object,
+            &root.children[1].object
+        ));
+        assert_eq!(user.children[2].name, None);
+        assert!(Arc::ptr_eq(
+            &root.children[3].object.children[0].object,
+            mat
+        ));
+    }
+
+    #[test]
+    fn ref_errors() {
+        let e = error(&scene(r#"<shape type="a"><ref id="nope"/></shape>"#));
+        assert!(e.contains("unknown id \"nope\""), "{e}");
+        assert!(e.contains("<ref id=\"nope\">"), "{e}");
+        // Refs only point backwards.
+        let e = error(&scene(
+            r#"<shape type="a"><ref id="later"/></shape><bsdf type="b" id="later"/>"#,
+        ));
+        assert!(e.contains("unknown id \"later\""), "{e}");
+        let e = error(&scene(r#"<shape type="a" id="me"><ref id="me"/></shape>"#));
+        assert!(e.contains("enclosing object"), "{e}");
+        let e = error(&scene(r#"<shape type="a"><ref/></shape>"#));
+        assert!(e.contains("missing attribute \"id\""), "{e}");
+        let e = error(&scene(r#"<alias id="x" as="y"/>"#));
+        assert!(e.contains("unknown id \"x\""), "{e}");
+    }
+
+    #[test]
+    fn duplicate_ids_and_names_fail() {
+        let e = error(&scene(
+            "<bsdf type=\"a\" id=\"m\"/>\n<bsdf type=\"b\" id=\"m\"/>",
+        ));
+        assert!(e.contains("duplicate id \"m\""), "{e}");
+        assert!(e.starts_with("scene.xml:2:1:"), "{e}");
+        assert!(e.contains("first declared at scene.xml:1:"), "{e}");
+        // Also when nested inside the first declaration.
+        let e = error(&scene(
+            r#"<shape type="a" id="m"><bsdf type="b" id="m"/></shape>"#,
+        ));
+        assert!(e.contains("duplicate id \"m\""), "{e}");
+        let e = error(&scene(
+            r#"<bsdf type="a" id="m"/><bsdf type="b" id="n"/><alias id="n" as="m"/>"#,
+        ));
+        assert!(e.contains("duplicate id \"m\""), "{e}");
+        let e = error(&scene(
+            r#"<shape type="a"><float name="r" value="1"/><float name="r" value="2"/></shape>"#,
+        ));
+        assert!(e.contains("duplicate name \"r\""), "{e}");
+        let e = error(&scene(
+            r#"<shape type="a"><rgb name="c" value="1"/><texture type="t" name="c"/></shape>"#,
+        ));
+        assert!(e.contains("duplicate name \"c\""), "{e}");
+        let e = error(&scene(r#"<shape type="a" id="_x"/>"#));
+        assert!(e.contains("leading underscores"), "{e}");
+        let e = error(&scene(
+            r#"<shape type="a"><float name="_x" value="1"/></shape>"#,
+        ));
+        assert!(e.contains("leading underscores"), "{e}");
+    }
+
+    #[test]
+    fn includes_relative_paths_sharing_defaults_and_ids() {
+        let dir = TempDir::new("include");
+        dir.write(
+            "sub/inc.xml",
+            r#"<scene version="3.0.0">
+                 <bsdf type="diffuse" id="mat"><float name="r" value="$r"/></bsdf>
+                 <include filename="deeper.xml"/>
+               </scene>"#,
+        );
+        dir.write(
+            "sub/deeper.xml",
+            "<scene version=\"3.0.0\">\n<emitter type=\"constant\" id=\"env\"/></scene>",
+        );
+        dir.write(
+            "sub/props.xml",
+            r#"<scene version="3.0.0"><float name="radius" value="2"/></scene>"#,
+        );
+        dir.write("sub/single.xml", r#"<film type="hdrfilm"/>"#);
+        let main = dir.write(
+            "main.xml",
+            scene(
+                r#"<default name="r" value="0.5"/>
+                   <default name="sub" value="sub"/>
+                   <include filename="$sub/inc.xml"/>
+                   <shape type="sphere">
+                       <ref id="mat" name="bsdf"/>
+                       <include filename="sub/props.xml"/>
+                   </shape>
+                   <sensor type="perspective"><include filename="sub/single.xml"/></sensor>"#,
+            ),
+        );
+        let root = load_file(&main, &[]).unwrap();
+        let tags: Vec<&str> = root
+            .children
+            .iter()
+            .map(|c| c.object.tag.as_str())
+            .collect();
+        assert_eq!(tags, ["bsdf", "emitter", "shape", "sensor"]);
+        let mat = &root.children[0].object;
+        assert_eq!(prop(mat, "r"), &Value::Float(0.5));
+        assert_eq!(mat.location.file, dir.0.join("sub/inc.xml"));
+        assert_eq!(mat.location.line, 2);
+        let env = &root.children[1].object;
+        assert_eq!(env.location.file, dir.0.join("sub/deeper.xml"));
+        assert_eq!(env.location.line, 2);
+        let shape = &root.children[2].object;
+        assert!(Arc::ptr_eq(&shape.children[0].object, mat));
+        assert_eq!(prop(shape, "radius"), &Value::Float(2.0));
+        let sensor = &root.children[3].object;
+        assert_eq!(sensor.children[0].object.plugin, "hdrfilm");
+
+        // Ids are shared across files: a duplicate in an included file fails.
+        let dup = dir.write(
+            "dup.xml",
+            scene(r#"<bsdf type="a" id="env"/><include filename="sub/deeper.xml"/>"#),
+        );
+        let e = load_file(&dup, &[]).unwrap_err().to_string();
+        assert!(e.contains("duplicate id \"env\""), "{e}");
+        assert!(e.contains("deeper.xml:2:1"), "{e}");
+    }
+
+    #[test]
+    fn cyclic_includes_fail() {
+        let dir = TempDir::new("cycle");
+        dir.write("b.xml", scene(r#"<include filename="a.xml"/>"#));
+        let a = dir.write("a.xml", scene(r#"<include filename="b.xml"/>"#));
+        let e = load_file(&a, &[]).unwrap_err().to_string();
+        assert!(e.contains("cyclic include"), "{e}");
+        assert!(e.contains("a.xml -> "), "{e}");
+        assert!(e.contains("b.xml -> "), "{e}");
+        assert!(e.ends_with("a.xml"), "{e}");
+        assert!(
+            e.starts_with(&dir.0.join("b.xml").display().to_string()),
+            "{e}"
+        );
+
+        let own = dir.write("self.xml", scene(r#"<include filename="self.xml"/>"#));
+        let e = load_file(&own, &[]).unwrap_err().to_string();
+        assert!(e.contains("cyclic include"), "{e}");
+    }
+
+    #[test]
+    fn include_depth_is_capped() {
+        let dir = TempDir::new("depth");
+        for i in 0..40 {
+            dir.write(
+                &format!("f{i}.xml"),
+                scene(&format!(r#"<include filename="f{}.xml"/>"#, i + 1)),
+            );
+        }
+        dir.write("f40.xml", scene(""));
+        let e = load_file(&dir.0.join("f0.xml"), &[])
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("include depth limit"), "{e}");
+    }
+
+    #[test]
+    fn include_errors() {
+        let dir = TempDir::new("include-errors");
+        let main = dir.write("main.xml", scene("\n<include filename=\"missing.xml\"/>"));
+        let e = load_file(&main, &[]).unwrap_err().to_string();
+        assert!(e.contains("main.xml:2:1"), "{e}");
+        assert!(e.contains("cannot read included file"), "{e}");
+        assert!(e.contains("missing.xml"), "{e}");
+
+        dir.write("bad.xml", "<scene version=\"3.0.0\"><shape>");
+        let main = dir.write("main2.xml", scene(r#"<include filename="bad.xml"/>"#));
+        match load_file(&main, &[]) {
+            Err(Error::Xml { path, .. }) => assert_eq!(path, dir.0.join("bad.xml")),
+            other => panic!("expected an XML error, got {other:?}"),
+        }
+        let e = error(&scene(r#"<include/>"#));
+        assert!(e.contains("missing attribute \"filename\""), "{e}");
+        let e = error(&scene(
+            r#"<shape type="a"><transform name="t"><include filename="x.xml"/></transform></shape>"#,
+        ));
+        assert!(e.contains("<include filename=\"x.xml\">"), "{e}");
+    }
+
+    #[test]
+    fn file_errors() {
+        let dir = TempDir::new("files");
+        let missing = dir.0.join("nope.xml");
+        match load_file(&missing, &[]) {
+            Err(Error::Io { path, .. }) => assert_eq!(path, missing),
+            other => panic!("expected an I/O error, got {other:?}"),
+        }
+        let mut bytes = scene("<shape type=\"a\"/>\n").into_bytes();
+        bytes.splice(10..10, [0xff, 0xfe]);
+        let latin = dir.write("latin.xml", bytes);
+        match load_file(&latin, &[]) {
+            Err(e @ Error::Xml { .. }) => assert!(e.to_string().contains("not valid UTF-8")),
+            other => panic!("expected an XML error, got {other:?}"),
+        }
+    }
+
+    #[test]
+    fn translate_then_rotate() {
+        let m = transform(r#"<translate x="1"/><rotate z="1" angle="90"/>"#);
+        // T = R * Tr: (1,0,0) -> (2,0,0) -> (0,2,0).
+        assert_vec(m.transform_point3(DVec3::X), DVec3::new(0.0, 2.0, 0.0));
+        assert_mat(
+            m,
+            DMat4::from_cols(
+                DVec4::new(0.0, 1.0, 0.0, 0.0),
+                DVec4::new(-1.0, 0.0, 0.0, 0.0),
+                DVec4::new(0.0, 0.0, 1.0, 0.0),
+                DVec4::new(0.0, 1.0, 0.0, 1.0),
+            ),
+        );
+        // The other order: (1,0,0) -> (0,1,0) -> (1,1,0).
+        let m = transform(r#"<rotate value="0 0 5" angle="90"/><translate value="1 0 0"/>"#);
+        assert_vec(m.transform_point3(DVec3::X), DVec3::new(1.0, 1.0, 0.0));
+        // Right-handed rotation about x: y goes to z.
+        let m = transform(r#"<rotate x="2" angle="90"/>"#);
+        assert_vec(m.transform_vector3(DVec3::Y), DVec3::Z);
+        let m = transform(r#"<translate value="1, 2, 3"/><translate y="-2"/>"#);
+        assert_vec(m.transform_point3(DVec3::ZERO), DVec3::new(1.0, 0.0, 3.0));
+    }
+
+    #[test]
+    fn translate_and_scale_order_follows_mitsuba() {
+        let ts = transform(r#"<translate x="1"/><scale value="2"/>"#);
+        let st = transform(r#"<scale value="2"/><translate x="1"/>"#);
+        // T = M * T: the later operation applies last.
+        assert_mat(
+            ts,
+            DMat4::from_scale(DVec3::splat(2.0)) * DMat4::from_translation(DVec3::X),
+        );
+        assert_mat(
+            st,
+            DMat4::from_translation(DVec3::X) * DMat4::from_scale(DVec3::splat(2.0)),
+        );
+        assert_vec(ts.transform_point3(DVec3::ZERO), DVec3::new(2.0, 0.0, 0.0));
+        assert_vec(st.transform_point3(DVec3::ZERO), DVec3::new(1.0, 0.0, 0.0));
+        assert_ne!(ts, st);
+    }
+
+    #[test]
+    fn scale_forms() {
+        let diag = |x: f64, y: f64, z: f64| DMat4::from_scale(DVec3::new(x, y, z));
+        assert_mat(transform(r#"<scale value="2"/>"#), diag(2.0, 2.0, 2.0));
+        assert_mat(transform(r#"<scale value="1 2 3"/>"#), diag(1.0, 2.0, 3.0));
+        assert_mat(transform(r#"<scale x="2"/>"#), diag(2.0, 1.0, 1.0));
+        assert_mat(transform(r#"<scale y="3" z="4"/>"#), diag(1.0, 3.0, 4.0));
+        assert_mat(transform(r#"<scale/>"#), DMat4::IDENTITY);
+    }
+
+    #[test]
+    fn matrix_is_row_major() {
+        let m = transform(r#"<matrix value="1 2 3 4  5 6 7 8  9 10 11 12  13 14 15 16"/>"#);
+        assert_eq!(m.row(0), DVec4::new(1.0, 2.0, 3.0, 4.0));
+        assert_eq!(m.row(3), DVec4::new(13.0, 14.0, 15.0, 16.0));
+        assert_eq!(m.w_axis, DVec4::new(4.0, 8.0, 12.0, 16.0));
+        let m = transform(r#"<matrix value="1,0,0,5, 0,1,0,6, 0,0,1,7, 0,0,0,1"/>"#);
+        assert_vec(m.transform_point3(DVec3::ZERO), DVec3::new(5.0, 6.0, 7.0));
+        let m = transform(r#"<matrix value="1 2 3 4 5 6 7 8 9"/>"#);
+        assert_eq!(m.row(0), DVec4::new(1.0, 2.0, 3.0, 0.0));
+        assert_eq!(m.row(2), DVec4::new(7.0, 8.0, 9.0, 0.0));
+        assert_eq!(m.row(3), DVec4::new(0.0, 0.0, 0.0, 1.0));
+    }
+
+    #[test]
+    fn lookat_columns() {
+        let m = transform(r#"<lookat origin="1 2 3" target="1 2 4" up="0 1 0"/>"#);
+        assert_mat(
+            m,
+            DMat4::from_cols(DVec4::X, DVec4::Y, DVec4::Z, DVec4::new(1.0, 2.0, 3.0, 1.0)),
+        );
+        // dir = +x, up = +z: left = up x dir = +y, new_up = dir x left = +z.
+        let m = transform(r#"<lookat origin="0, 0, 0" target="5, 0, 0" up="0, 0, 3"/>"#);
+        assert_mat(m, DMat4::from_cols(DVec4::Y, DVec4::Z, DVec4::X, DVec4::W));
+        // Without `up`, one is chosen: the frame stays orthonormal and looks along dir.
+        let m = transform(r#"<lookat origin="0 0 0" target="0 3 4"/>"#);
+        assert_vec(m.z_axis.truncate(), DVec3::new(0.0, 0.6, 0.8));
+        assert!((m.x_axis.truncate().length() - 1.0).abs() < 1e-12);
+        assert!(m.x_axis.truncate().dot(m.z_axis.truncate()).abs() < 1e-12);
+        // A lookat after a translate is applied after it.
+        let m =
+            transform(r#"<translate x="1"/><lookat origin="0 0 0" target="5 0 0" up="0 0 1"/>"#);
+        assert_vec(m.transform_point3(DVec3::ZERO), DVec3::new(0.0, 1.0, 0.0));
+    }
+
+    #[test]
+    fn transform_errors() {
+        let e = transform_error(r#"<rotate angle="30"/>"#);
+        assert!(e.contains("zero rotation axis"), "{e}");
+        assert!(e.contains("<rotate>"), "{e}");
+        let e = transform_error(r#"<rotate x="1"/>"#);
+        assert!(e.contains("missing attribute \"angle\""), "{e}");
+        let e = transform_error(r#"<lookat origin="1 1 1" target="1 1 1" up="0 1 0"/>"#);
+        assert!(e.contains("target coincides with origin"), "{e}");
+        let e = transform_error(r#"<lookat origin="0 0 0" target="0 2 0" up="0 1 0"/>"#);
+        assert!(e.contains("parallel"), "{e}");
+        let e = transform_error(r#"<lookat origin="0 0" target="0 2 0"/>"#);
+        assert!(e.contains("exactly 3 components"), "{e}");
+        let e = transform_error(r#"<matrix value="1 2 3"/>"#);
+        assert!(e.contains("16 (or 9) values"), "{e}");
+        let e = transform_error(r#"<translate x="nan"/>"#);
+        assert!(e.contains("non-finite"), "{e}");
+        let e = transform_error(r#"<scale value="1 2"/>"#);
+        assert!(e.contains("1 or 3 components"), "{e}");
+        let e = transform_error(r#"<translate value="1 2 3" x="1"/>"#);
+        assert!(e.contains("cannot be mixed"), "{e}");
+        let e = transform_error(r#"<scale value="1e200"/><scale value="1e200"/>"#);
+        assert!(e.contains("non-finite"), "{e}");
+        let e = transform_error(r#"<float name="x" value="1"/>"#);
+        assert!(
+            e.contains("unexpected <float name=\"x\"> inside <transform name=\"t\">"),
+            "{e}"
+        );
+        let e = transform_error(r#"<translate><scale/></translate>"#);
+        assert!(e.contains("cannot appear inside <translate>"), "{e}");
+        let e = transform_error("junk");
+        assert!(e.contains("unexpected text \"junk\""), "{e}");
+        let e = error(&scene(r#"<shape type="a"><translate x="1"/></shape>"#));
+        assert!(e.contains("outside of a <transform>"), "{e}");
+        let e = error(&scene(
+            r#"<shape type="a"><lookat origin="0 0 0" target="0 0 1"/></shape>"#,
+        ));
+        assert!(e.contains("outside of a <transform>"), "{e}");
+        let e = error(&scene(r#"<shape type="a"><transform/></shape>"#));
+        assert!(e.contains("missing attribute \"name\""), "{e}");
+    }
+
+    #[test]
+    fn value_errors() {
+        let cases = [
+            (
+                r#"<integer name="a" value="3.5"/>"#,
+                "could not parse integer value \"3.5\"",
+            ),
+            (
+                r#"<integer name="a" value="9223372036854775808"/>"#,
+                "could not parse integer",
+            ),
+            (r#"<integer name="a" value=""/>"#, "could not parse integer"),
+            (
+                r#"<float name="a" value="nan"/>"#,
+                "non-finite floating point value \"nan\"",
+            ),
+            (r#"<float name="a" value="-inf"/>"#, "non-finite"),
+            (r#"<float name="a" value="1e999"/>"#, "non-finite"),
+            (
+                r#"<float name="a" value="1.0f"/>"#,
+                "could not parse floating point value",
+            ),
+            (
+                r#"<boolean name="a" value="yes"/>"#,
+                "could not parse boolean value \"yes\"",
+            ),
+            (
+                r#"<rgb name="a" value="1 2"/>"#,
+                "one or three values, found 2",
+            ),
+            (
+                r#"<rgb name="a" value="1 2 3 4"/>"#,
+                "one or three values, found 4",
+            ),
+            (
+                r#"<rgb name="a" value="1 x 3"/>"#,
+                "could not parse floating point value \"x\"",
+            ),
+            (
+                r#"<point name="a" value="1 2 3" y="1"/>"#,
+                "cannot be mixed",
+            ),
+            (r#"<float name="a"/>"#, "missing attribute \"value\""),
+            (r#"<float value="1"/>"#, "missing attribute \"name\""),
+            (r#"<float name="" value="1"/>"#, "empty name"),
+            (
+                r#"<float name="a" value="1" vlaue="2"/>"#,
+                "unexpected attribute \"vlaue\"",
+            ),
+            (
+                r#"<string name="a" value="x"><string name="b" value="y"/></string>"#,
+                "cannot appear inside <string name=\"a\">",
+            ),
+            (
+                r#"<float name="a" value="1">2</float>"#,
+                "unexpected text \"2\"",
+            ),
+        ];
+        for (body, expected) in cases {
+            let e = error(&scene(&format!("<shape type=\"s\">{body}</shape>")));
+            assert!(e.contains(expected), "{body}: {e}");
+            // The offending element is named, with its location.
+            let tag = body.split([' ', '>']).next().unwrap_or_default();
+            assert!(
+                e.contains(&format!("{tag} name=")) || e.contains(&format!("{tag}>")),
+                "{body}: {e}"
+            );
+            assert!(e.starts_with("scene.xml:1:"), "{body}: {e}");
+        }
+    }
+
+    #[test]
+    fn structure_errors() {
+        let e = error(&scene(r#"<shape/>"#));
+        assert!(e.contains("missing attribute \"type\" in <shape>"), "{e}");
+        let e = error(&scene(r#"<shape type=""/>"#));
+        assert!(e.contains("empty \"type\""), "{e}");
+        let e = error(&scene(r#"<shape type="a" color="red"/>"#));
+        assert!(e.contains("unexpected attribute \"color\""), "{e}");
+        let e = error("<scene>\n</scene>");
+        assert!(e.contains("missing attribute \"version\""), "{e}");
+        assert!(e.starts_with("scene.xml:1:1:"), "{e}");
+        let e = error(r#"<scene version="three"/>"#);
+        assert!(e.contains("could not parse version"), "{e}");
+        let e = error(r#"<scene version="3.0.0" foo="1"/>"#);
+        assert!(e.contains("unexpected attribute \"foo\""), "{e}");
+        let e = error(r#"<shape type="a"/>"#);
+        assert!(e.contains("root element must be <scene>"), "{e}");
+        let e = error(&scene("<foo/>"));
+        assert!(e.contains("unknown tag <foo> in <scene>"), "{e}");
+        let e = error(&scene(r#"<shape type="a"><lights type="x"/></shape>"#));
+        assert!(
+            e.contains("unknown object tag <lights type=\"x\"> in <shape type=\"a\">"),
+            "{e}"
+        );
+        let e = error(&scene("<scene version=\"3.0.0\"/>"));
+        assert!(e.contains("can only be the root element"), "{e}");
+        let e = error(&scene("hello"));
+        assert!(e.contains("unexpected text \"hello\" in <scene>"), "{e}");
+        let e = error(r#"<scene version="3.0.0" xmlns="urn:x"/>"#);
+        assert!(e.contains("namespaced"), "{e}");
+        // Comments, processing instructions and whitespace are fine.
+        let root = parse(&scene("<!-- c --> <?pi x?>\n\t<shape type=\"a\"/>")).unwrap();
+        assert_eq!(root.children.len(), 1);
+        assert!(parse(&scene("")).unwrap().children.is_empty());
+    }
+
+    #[test]
+    fn errors_name_the_element_and_its_line() {
+        let xml = "<scene version=\"3.0.0\">\n\
+                   \x20 <bsdf type=\"diffuse\">\n\
+                   \x20   <spectrum name=\"reflectance\" value=\"0.5\"/>\n\
+                   \x20 </bsdf>\n\
+                   </scene>\n";
+        assert_eq!(
+            error(xml),
+            "scene.xml:3:5: unknown property tag <spectrum name=\"reflectance\"> in <bsdf type=\"diffuse\">"
+        );
+        let xml = "<scene version=\"3.0.0\">\n\n\n<shape type=\"a\">\n<integer name=\"n\" value=\"x\"/></shape></scene>";
+        let e = error(xml);
+        assert!(e.starts_with("scene.xml:5:1: "), "{e}");
+        assert!(e.contains("<integer name=\"n\">"), "{e}");
+        // Columns count characters, not bytes.
+        let xml = "<scene version=\"3.0.0\"><!-- é --><foo/></scene>";
+        assert!(error(xml).starts_with("scene.xml:1:34:"), "{}", error(xml));
+    }
+
+    #[test]
+    fn malformed_xml_fails() {
+        for xml in [
+            "",
+            "not xml",
+            "<scene version=\"3.0.0\"><shape type=\"a\"></scene>",
+            "<scene version=\"3.0.0\"><shape type=\"a\"",
+            "<scene version=\"3.0.0\">",
+            "<scene version=\"3.0.0\" version=\"3.0.0\"/>",
+            "<scene version=\"3.0.0\"/><scene version=\"3.0.0\"/>",
+            "<!DOCTYPE scene [<!ENTITY a \"b\">]><scene version=\"3.0.0\"/>",
+            "<scene version=\"3.0.0\">&bogus;</scene>",
+        ] {
+            match parse(xml) {
+                Err(Error::Xml { path, message }) => {
+                    assert_eq!(path, PathBuf::from("scene.xml"));
+                    assert!(!message.is_empty());
+                }
+                other => panic!("{xml:?}: expected an XML error, got {other:?}"),
+            }
+        }
+    }
+
+    #[test]
+    fn deep_nesting_fails_quickly() {
+        let start = Instant::now();
+        let depth = 1_000_000;
+        let open = "<shape type=\"a\">".repeat(depth);
+        let truncated = format!("<scene version=\"3.0.0\">{open}");
+        assert!(parse(&truncated).is_err());
+        let closed = format!("{truncated}{}</scene>", "</shape>".repeat(depth));
+        let e = error(&closed);
+        assert!(e.contains("nested more than"), "{e}");
+        assert!(start.elapsed() < Duration::from_secs(2));
+
+        // Deeper than the object limit but within the XML pre-check.
+        let depth = 100;
+        let xml = format!(
+            "<scene version=\"3.0.0\">{}{}</scene>",
+            "<shape type=\"a\">".repeat(depth),
+            "</shape>".repeat(depth)
+        );
+        let e = error(&xml);
+        assert!(e.contains("nested more than 64 levels"), "{e}");
+        // Just within the limit is fine.
+        let depth = 63;
+        let xml = format!(
+            "<scene version=\"3.0.0\">{}{}</scene>",
+            "<shape type=\"a\">".repeat(depth),
+            "</shape>".repeat(depth)
+        );
+        assert!(parse(&xml).is_ok());
+        // Markup inside comments, CDATA and attribute values does not count.
+        let xml = scene(&format!(
+            "<!-- {} --><shape type=\"a&gt;\"><string name=\"s\" value=\"<\"/></shape>",
+            "<a>".repeat(1000)
+        ));
+        assert!(matches!(parse(&xml), Err(Error::Xml { .. })));
+        let xml = scene(&format!(
+            "<!-- {} --><shape type=\"a>\"><string name=\"s\" value=\"/>\"/></shape>",
+            "<a>".repeat(1000)
+        ));
+        assert!(parse(&xml).is_ok());
+    }
+
+    #[test]
+    fn too_many_attributes_fail_quickly() {
+        let attributes: String = (0..100_000).map(|i| format!(" a{i}=\"\"")).collect();
+        let xml = format!("<scene version=\"3.0.0\"{attributes}/>");
+        match parse(&xml) {
+            Err(Error::Xml { message, .. }) => {
+                assert!(message.contains("more than 256 attributes"), "{message}")
+            }
+            other => panic!("expected an XML error, got {other:?}"),
+        }
+    }
+
+    #[test]
+    fn upgrades_old_scenes_like_mitsuba() {
+        let xml = r#"<scene version="0.6.0">
+            <shape type="sphere" id="_s">
+                <float name="someValueX" value="1"/>
+                <bsdf type="diffuse"><rgb name="diffuseReflectance" value="0.5"/></bsdf>
+            </shape>
+            <default name="camelCase" value="2"/>
+            <sensor type="perspective">
+                <integer name="x" value="$camelCase"/>
+                <transform name="toWorld">
+                    <lookAt origin="0 0 0" target="0 0 1" up="0 1 0"/>
+                </transform>
+            </sensor>
+        </scene>"#;
+        let root = parse(xml).unwrap();
+        let shape = first(&root);
+        assert_eq!(shape.id.as_deref(), Some("ID_s__UPGR"));
+        assert_eq!(prop(shape, "some_value_x"), &Value::Float(1.0));
+        assert_eq!(
+            prop(&shape.children[0].object, "reflectance"),
+            &Value::Rgb(DVec3::splat(0.5))
+        );
+        let sensor = &root.children[1].object;
+        assert_eq!(prop(sensor, "x"), &Value::Integer(2));
+        assert_eq!(prop(sensor, "to_world"), &Value::Transform(DMat4::IDENTITY));
+        // Current files are left alone.
+        let e = error(&scene(
+            r#"<shape type="a"><transform name="t"><lookAt/></transform></shape>"#,
+        ));
+        assert!(e.contains("<lookAt>"), "{e}");
+        assert_eq!(camel_to_snake("aBcD"), "a_bcD");
+        assert_eq!(camel_to_snake("toWorld"), "to_world");
+        assert_eq!(camel_to_snake("intIOR"), "int_ior");
+        assert_eq!(camel_to_snake(""), "");
+    }
+
+    #[test]
+    fn mangled_input_never_panics() {
+        let xml = scene(
+            r#"<default name="d" value="1"/>
+               <bsdf type="diffuse" id="m"><rgb name="c" value="0.1, 0.2, 0.3"/></bsdf>
+               <shape type="obj" name="s"><ref id="m" name="bsdf"/><boolean name="b" value="true"/>
+                 <transform name="to_world"><translate value="1 $d 3"/><rotate y="1" angle="45"/>
+                 <scale x="2"/><matrix value="1 0 0 0 0 1 0 0 0 0 1 0 0 0 0 1"/>
+                 <lookat origin="0,0,1" target="0,0,0" up="0,1,0"/></transform>
+                 <point name="p" x="1"/><integer name="i" value="$d"/><!-- note -->
+               </shape>"#,
+        );
+        assert!(parse(&xml).is_ok());
+        let bytes = xml.as_bytes();
+        for end in 0..bytes.len() {
+            let _ = parse(xml.get(..end).unwrap_or_default());
+        }
+        for i in 0..bytes.len() {
+            for replacement in [b'<', b'>', b'"', b'$'] {
+                let mut mangled = bytes.to_vec();
+                mangled[i] = replacement;
+                let text = String::from_utf8(mangled).unwrap();
+                let _ = parse(&text);
+            }
+        }
+    }
+}
