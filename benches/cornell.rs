@@ -1,1 +1,31 @@
-fn main() {}
+//! Paths per second on the Cornell box (scenes/cornell-box.xml at 64x64, 4 spp per
+//! iteration). Run with `cargo bench --bench cornell`; criterion reports the throughput in
+//! elements (camera paths) per second.
+
+use criterion::{criterion_group, criterion_main, Criterion, Throughput};
+use penumbra::render::{render, RenderSettings};
+use penumbra::scene::Scene;
+use std::path::Path;
+
+fn cornell(c: &mut Criterion) {
+    let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes/cornell-box.xml");
+    let scene = Scene::load(&path, &[("res".into(), "64".into())]).expect("scene loads");
+    let spp = 4;
+    let settings = RenderSettings {
+        spp,
+        seed: 0,
+        threads: None,
+    };
+    let mut group = c.benchmark_group("cornell-box");
+    group.throughput(Throughput::Elements(
+        (scene.width * scene.height) as u64 * spp as u64,
+    ));
+    group.sample_size(20);
+    group.bench_function("render 64x64 4spp", |b| {
+        b.iter(|| render(&scene, &settings, &|_, _| {}).expect("render"))
+    });
+    group.finish();
+}
+
+criterion_group!(benches, cornell);
+criterion_main!(benches);

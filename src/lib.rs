@@ -12,11 +12,13 @@ pub mod film;
 pub mod geometry;
 pub mod integrator;
 pub mod io;
+pub mod metrics;
 pub mod render;
 pub mod sampler;
 pub mod sampling;
 pub mod scene;
 pub mod shape;
+pub mod stats;
 
 pub use error::{Error, Result};
 

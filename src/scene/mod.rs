@@ -45,6 +45,13 @@ impl Scene {
         build::build(&desc)
     }
 
+    /// Builds a scene from XML text; `path` locates it for messages and relative files.
+    pub fn from_xml_str(text: &str, path: &Path, defines: &[(String, String)]) -> Result<Scene> {
+        let root = xml::load_str(text, path, defines)?;
+        let desc = description::from_xml(&root)?;
+        build::build(&desc)
+    }
+
     /// The closest surface hit by `ray`.
     #[inline]
     pub fn intersect(&self, ray: &Ray) -> Option<SurfaceInteraction> {

@@ -1,0 +1,42 @@
+//! Helpers shared by the scene-level tests.
+#![allow(dead_code)]
+
+use penumbra::render::{render, RenderOutput, RenderSettings};
+use penumbra::scene::Scene;
+use std::path::{Path, PathBuf};
+
+pub fn repo_path(rel: &str) -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join(rel)
+}
+
+pub fn scene_from_str(xml: &str) -> Scene {
+    Scene::from_xml_str(xml, &repo_path("tests/inline.xml"), &[]).expect("scene builds")
+}
+
+pub fn load(rel: &str, defines: &[(&str, &str)]) -> Scene {
+    let defines: Vec<(String, String)> = defines
+        .iter()
+        .map(|(k, v)| (k.to_string(), v.to_string()))
+        .collect();
+    Scene::load(&repo_path(rel), &defines).expect("scene loads")
+}
+
+pub fn render_scene(scene: &Scene, spp: u32, seed: u64, threads: Option<usize>) -> RenderOutput {
+    render(scene, &RenderSettings { spp, seed, threads }, &|_, _| {}).expect("render")
+}
+
+/// Per-channel mean over all pixels of the image and the standard error of that mean,
+/// estimated from the per-pixel sample variances (pixels are independent).
+pub fn image_mean_and_se(out: &RenderOutput, spp: u32) -> ([f64; 3], [f64; 3]) {
+    let img = out.film.image();
+    let var = out.film.sample_variance();
+    let n = img.len() as f64;
+    let mut mean = [0.0; 3];
+    let mut se = [0.0; 3];
+    for c in 0..3 {
+        mean[c] = img.iter().map(|p| p[c] as f64).sum::<f64>() / n;
+        let v: f64 = var.iter().map(|p| p[c] as f64 / spp as f64).sum::<f64>() / (n * n);
+        se[c] = v.sqrt();
+    }
+    (mean, se)
+}
