@@ -1,0 +1,230 @@
+#!/usr/bin/env python3
+"""Render a Mitsuba 3 reference image with a per-pixel variance estimate.
+
+Usage:
+    python validation/mitsuba/render_reference.py SCENE.xml OUT.exr [--spp 4096]
+        [--pass-spp 256] [--variant auto|llvm_ad_rgb|scalar_rgb] [-D name=value ...]
+
+The image is rendered in passes of ``--pass-spp`` samples per pixel, each with its own seed
+(``seed_base + k``), and the passes are averaged (one render of w*h*spp samples is one
+wavefront, so high spp must be split). The output EXR (float32, one part, PIZ compression as
+Mitsuba writes it) has the channels
+
+    R, G, B                         the mean radiance per pixel
+    variance.R, variance.G, variance.B
+                                    the per-pixel, per-channel variance of ONE sample
+
+so the variance of the pixel mean is ``variance / spp``. With a box reconstruction filter every
+sample lands in exactly one pixel, which is what makes this a per-sample variance; the script
+warns for other filters.
+
+Variance methods (``--variance``):
+
+* ``rgb-moment`` (default for llvm/cuda variants): the scene's integrator is wrapped in a small
+  Python integrator that outputs the squared RGB value of each sample as extra channels, so
+  ``var = n/(n-1) * (E[x^2] - E[x]^2)`` per pixel and channel, with the moments pooled over all
+  passes (n = total spp). Mitsuba's built-in ``moment`` integrator is not used because in
+  3.9.1 it records its moments in CIE XYZ (AOVs ``nested.X/Y/Z``, ``m2_nested.X/Y/Z``), from
+  which per-channel RGB variances cannot be recovered.
+* ``passes`` (default for scalar variants, where a Python integrator runs per sample and is
+  ~14x slower): ``var = pass_spp * sample variance of the pass means`` (unbiased, but with only
+  ``passes - 1`` degrees of freedom per pixel). Needs at least 2 equal passes.
+
+Metadata goes to a JSON manifest (default: ``manifest.json`` next to this script), keyed by the
+output file name: scene, mitsuba_version, variant, spp, pass_spp, passes, width, height,
+render_seconds, date, defines (plus path, variance_method, seed_base, image_mean,
+variance_mean).
+"""
+
+import argparse
+import datetime
+import json
+import os
+import sys
+import time
+
+import numpy as np
+
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+import mitsuba_util as mu  # noqa: E402
+
+SCRIPT_DIR = os.path.dirname(os.path.abspath(__file__))
+REPO_ROOT = os.path.dirname(os.path.dirname(SCRIPT_DIR))
+CHANNELS = ["R", "G", "B", "variance.R", "variance.G", "variance.B"]
+
+
+def rel_to_repo(path):
+    """Path relative to the repository root if inside it, else absolute."""
+    ap = os.path.abspath(path)
+    try:
+        rel = os.path.relpath(ap, REPO_ROOT)
+    except ValueError:
+        return ap
+    return ap if rel.startswith("..") else rel
+
+
+def parse_args(argv=None):
+    p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0],
+                                formatter_class=argparse.RawDescriptionHelpFormatter)
+    p.add_argument("scene", help="Mitsuba 3 XML scene")
+    p.add_argument("out", help="output OpenEXR file")
+    p.add_argument("--spp", type=int, default=4096, help="total samples per pixel (4096)")
+    p.add_argument("--pass-spp", type=int, default=256, help="samples per pixel per pass (256)")
+    p.add_argument("--variant", choices=mu.VARIANT_CHOICES, default="auto",
+                   help="auto = llvm_ad_rgb if it works, else scalar_rgb")
+    p.add_argument("--variance", choices=("auto", "rgb-moment", "passes"), default="auto",
+                   help="variance estimator (auto: rgb-moment for JIT variants, passes for scalar)")
+    p.add_argument("--seed-base", type=int, default=0, help="pass k uses seed seed_base + k")
+    p.add_argument("-D", dest="defines", action="append", default=[], metavar="NAME=VALUE",
+                   help="XML $NAME substitution (repeatable)")
+    p.add_argument("--manifest", default=os.path.join(SCRIPT_DIR, "manifest.json"),
+                   help="JSON manifest to update (default: manifest.json next to this script)")
+    p.add_argument("--no-manifest", action="store_true", help="do not update the manifest")
+    p.add_argument("--quiet", action="store_true", help="no per-pass progress")
+    args = p.parse_args(argv)
+    if args.spp < 1 or args.pass_spp < 1:
+        p.error("--spp and --pass-spp must be positive")
+    return args
+
+
+def pass_sizes(spp, pass_spp):
+    """Split spp into passes of pass_spp (the last one may be smaller)."""
+    sizes = [pass_spp] * (spp // pass_spp)
+    if spp % pass_spp:
+        sizes.append(spp % pass_spp)
+    return sizes
+
+
+def render_passes(mi, scene, variant, method, sizes, seed_base, quiet):
+    """Render all passes; returns (mean[H,W,3], var[H,W,3], seconds)."""
+    integrator = scene.integrator()
+    if method == "rgb-moment":
+        integrator = mu.make_rgb_moment_integrator(mi, integrator)
+    total = sum(sizes)
+    sum_x = None   # sum over passes of n_k * mean_k
+    sum_x2 = None  # rgb-moment: sum of n_k * E_k[x^2];  passes: sum of mean_k^2
+    t0 = time.perf_counter()
+    for k, n in enumerate(sizes):
+        tp = time.perf_counter()
+        img = mu.to_numpy(mi.render(scene, integrator=integrator, seed=seed_base + k, spp=n))
+        img = img.astype(np.float64)
+        mean_k = img[..., 0:3]
+        if sum_x is None:
+            sum_x = np.zeros_like(mean_k)
+            sum_x2 = np.zeros_like(mean_k)
+        sum_x += n * mean_k
+        if method == "rgb-moment":
+            sum_x2 += n * img[..., 3:6]
+        else:
+            sum_x2 += mean_k * mean_k
+        if not quiet:
+            print(f"  pass {k + 1}/{len(sizes)}: {n} spp, seed {seed_base + k}, "
+                  f"{time.perf_counter() - tp:.2f} s, mean {mean_k.reshape(-1, 3).mean(0)}",
+                  file=sys.stderr, flush=True)
+    seconds = time.perf_counter() - t0
+    mean = sum_x / total
+    if method == "rgb-moment":
+        m2 = sum_x2 / total
+        var = (m2 - mean * mean) * (total / (total - 1) if total > 1 else 1.0)
+    else:
+        p = len(sizes)
+        n = sizes[0]
+        # sample variance of the pass means (ddof=1) times the samples per pass
+        var = (sum_x2 - p * mean * mean) / (p - 1) * n
+    var = np.maximum(var, 0.0)  # E[x^2]-E[x]^2 can round to a tiny negative value
+    return mean, var, seconds
+
+
+def write_exr(mi, path, mean, var):
+    """Write R,G,B,variance.R,variance.G,variance.B as float32 in one EXR part."""
+    data = np.ascontiguousarray(np.concatenate([mean, var], axis=-1).astype(np.float32))
+    bmp = mi.Bitmap(data, mi.Bitmap.PixelFormat.MultiChannel, CHANNELS)
+    os.makedirs(os.path.dirname(os.path.abspath(path)) or ".", exist_ok=True)
+    bmp.write(path)
+    return data
+
+
+def verify_exr(mi, path, data):
+    """Read the file back (Mitsuba and a raw header parse) and check channels and values."""
+    back = mi.Bitmap(path)
+    names = [back.struct_()[i].name for i in range(back.channel_count())]
+    arr = np.array(back)
+    hdr = mu.exr_header(path)
+    ok = (names == CHANNELS and arr.shape == data.shape and np.array_equal(arr, data)
+          and not hdr["multipart"]
+          and sorted(c for c, _ in hdr["channels"]) == sorted(CHANNELS)
+          and all(t == 2 for _, t in hdr["channels"]))
+    return ok, names, hdr
+
+
+def update_manifest(path, key, entry):
+    manifest = {}
+    if os.path.exists(path):
+        with open(path) as f:
+            manifest = json.load(f)
+    manifest[key] = entry
+    with open(path + ".tmp", "w") as f:
+        json.dump(dict(sorted(manifest.items())), f, indent=2)
+        f.write("\n")
+    os.replace(path + ".tmp", path)
+
+
+def main(argv=None):
+    args = parse_args(argv)
+    defines = mu.parse_defines(args.defines)
+    mi, variant = mu.select_variant(args.variant)
+    if not variant.endswith("_rgb"):
+        raise SystemExit(f"only *_rgb variants are supported, got {variant}")
+    method = args.variance
+    if method == "auto":
+        method = "rgb-moment" if mu.is_jit_variant(variant) else "passes"
+
+    sizes = pass_sizes(args.spp, args.pass_spp)
+    if method == "passes" and (len(sizes) < 2 or len(set(sizes)) != 1):
+        raise SystemExit("--variance passes needs spp to be a multiple of pass-spp, "
+                         "with at least 2 passes")
+
+    scene = mu.load_scene(mi, args.scene, defines)
+    width, height, rfilter = mu.film_info(scene)
+    if rfilter != "BoxFilter":
+        print(f"warning: film filter is {rfilter}, not box: samples spread over several "
+              "pixels and the variance channels are not per-sample variances",
+              file=sys.stderr)
+
+    print(f"{args.scene}: {width}x{height}, {args.spp} spp in {len(sizes)} passes of "
+          f"{args.pass_spp}, variant {variant}, variance {method}", file=sys.stderr)
+    mean, var, seconds = render_passes(mi, scene, variant, method, sizes, args.seed_base,
+                                       args.quiet)
+    data = write_exr(mi, args.out, mean, var)
+    ok, names, hdr = verify_exr(mi, args.out, data)
+    if not ok:
+        raise SystemExit(f"EXR read-back check failed: channels {names}, header {hdr}")
+
+    image_mean = data[..., 0:3].reshape(-1, 3).mean(0).astype(float).tolist()
+    variance_mean = data[..., 3:6].reshape(-1, 3).mean(0).astype(float).tolist()
+    entry = {
+        "path": rel_to_repo(args.out),
+        "scene": rel_to_repo(args.scene),
+        "mitsuba_version": mi.__version__,
+        "variant": variant,
+        "spp": args.spp,
+        "pass_spp": args.pass_spp,
+        "passes": len(sizes),
+        "width": width,
+        "height": height,
+        "render_seconds": round(seconds, 3),
+        "date": datetime.datetime.now(datetime.timezone.utc).isoformat(timespec="seconds"),
+        "defines": defines,
+        "variance_method": method,
+        "seed_base": args.seed_base,
+        "image_mean": image_mean,
+        "variance_mean": variance_mean,
+    }
+    if not args.no_manifest:
+        update_manifest(args.manifest, os.path.basename(args.out), entry)
+    print(json.dumps({"out": rel_to_repo(args.out), "channels": names,
+                      "exr_compression": hdr["compression"], **entry}, indent=2))
+
+
+if __name__ == "__main__":
+    main()
