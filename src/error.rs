@@ -19,12 +19,12 @@ impl std::fmt::Display for Location {
 
 #[derive(Debug, thiserror::Error)]
 pub enum Error {
-    /// A file could not be read or written.
-    #[error("{}: {source}", path.display())]
+    /// A file could not be read or written. (The cause is part of the message, not a
+    /// `source`, so that `{:#}` printing does not repeat it.)
+    #[error("{}: {cause}", path.display())]
     Io {
         path: PathBuf,
-        #[source]
-        source: std::io::Error,
+        cause: std::io::Error,
     },
     /// The scene file is not well-formed XML.
     #[error("{}: malformed XML: {message}", path.display())]
@@ -39,6 +39,9 @@ pub enum Error {
     /// A mesh file could not be loaded.
     #[error("{}: cannot load mesh: {message}", path.display())]
     Mesh { path: PathBuf, message: String },
+    /// An input image (reference, environment map) could not be read.
+    #[error("{}: cannot read image: {message}", path.display())]
+    Image { path: PathBuf, message: String },
     /// Writing an output image failed.
     #[error("{}: cannot write image: {message}", path.display())]
     Output { path: PathBuf, message: String },

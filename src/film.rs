@@ -130,6 +130,18 @@ impl Film {
         }
     }
 
+    /// Adds another film's sums (same size and filter): the film of a render continued from
+    /// where this one stopped.
+    pub fn add(&mut self, other: &Film) {
+        for i in 0..self.sum.len().min(other.sum.len()) {
+            for c in 0..3 {
+                self.sum[i][c] += other.sum[i][c];
+                self.sum_sq[i][c] += other.sum_sq[i][c];
+            }
+            self.weight[i] += other.weight[i];
+        }
+    }
+
     /// The reconstructed image: weighted mean per pixel (0 where no weight landed).
     pub fn image(&self) -> Vec<[f32; 3]> {
         (0..self.sum.len())

@@ -82,6 +82,7 @@ fn run_render(args: RenderArgs) -> Result<()> {
         spp,
         seed: args.seed.unwrap_or(scene.seed),
         threads: args.threads,
+        first_sample: 0,
     };
     let total = (scene.width * scene.height) as u64 * spp as u64;
     let bar = if args.quiet || !std::io::stderr().is_terminal() {

@@ -20,6 +20,9 @@ pub const TILE_SIZE: usize = 16;
 pub struct RenderSettings {
     /// Samples per pixel.
     pub spp: u32,
+    /// Index of the first sample of each pixel: a render with offset k continues one that
+    /// drew samples 0..k, so that films can be added up progressively (see [`Film::add`]).
+    pub first_sample: u64,
     pub seed: u64,
     /// Worker threads; `None` for rayon's default (one per core).
     pub threads: Option<usize>,
@@ -65,8 +68,9 @@ fn render_tile(scene: &Scene, settings: &RenderSettings, x0: usize, y0: usize) -
     for y in y0..y0 + h {
         for x in x0..x0 + w {
             let pixel = (y * scene.width + x) as u64;
-            for s in 0..settings.spp {
-                let mut sampler = SampleStream::new(settings.seed, pixel, s as u64);
+            for s in 0..settings.spp as u64 {
+                let mut sampler =
+                    SampleStream::new(settings.seed, pixel, settings.first_sample + s);
                 let pos = Vec2::new(x as f32, y as f32) + sampler.next_2d();
                 let ray = scene.camera.generate_ray(pos * inv_res);
                 let l = scene.integrator.li(scene, ray, &mut sampler, &mut stats);
@@ -114,7 +118,8 @@ pub fn render(
             .par_iter()
             .map(|&(x, y)| {
                 let r = render_tile(scene, settings, x, y);
-                let n = (r.tile.width * r.tile.height) as u64 * settings.spp as u64;
+                let pixels = TILE_SIZE.min(scene.width - x) * TILE_SIZE.min(scene.height - y);
+                let n = pixels as u64 * settings.spp as u64;
                 progress(done.fetch_add(n, Ordering::Relaxed) + n, total);
                 r
             })

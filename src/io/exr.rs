@@ -96,18 +96,17 @@ fn attribute_text(v: &AttributeValue) -> Option<String> {
 /// Reads the first part of an EXR file: channels R, G, B and, if present, the variance
 /// channels (`variance.R` ... as penumbra writes them).
 pub fn read(path: &Path) -> Result<RgbImage> {
-    let in_err = |message: String| Error::Mesh {
+    let in_err = |message: String| Error::Image {
         path: path.to_path_buf(),
         message,
     };
-    if let Err(source) = std::fs::metadata(path) {
+    if let Err(cause) = std::fs::metadata(path) {
         return Err(Error::Io {
             path: path.to_path_buf(),
-            source,
+            cause,
         });
     }
-    let image = read_all_flat_layers_from_file(path)
-        .map_err(|e| in_err(format!("cannot read EXR: {e}")))?;
+    let image = read_all_flat_layers_from_file(path).map_err(|e| in_err(e.to_string()))?;
     let layer = image
         .layer_data
         .first()

@@ -216,9 +216,9 @@ pub fn load_obj(
     flip_normals: bool,
     warnings: &mut Vec<String>,
 ) -> Result<Mesh> {
-    let bytes = std::fs::read(path).map_err(|source| Error::Io {
+    let bytes = std::fs::read(path).map_err(|cause| Error::Io {
         path: path.to_path_buf(),
-        source,
+        cause,
     })?;
     let mesh_err = |message: String| Error::Mesh {
         path: path.to_path_buf(),

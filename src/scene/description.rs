@@ -109,8 +109,10 @@ pub enum EmitterDesc {
     Area { radiance: DVec3 },
 }
 
-/// Largest image side accepted; refusing larger ones before allocating anything.
+/// Largest image side accepted; larger ones are refused before allocating anything.
 pub const MAX_RESOLUTION: u32 = 1 << 16;
+/// Largest pixel count accepted (8192², whose f64 film takes 3.8 GB).
+pub const MAX_PIXELS: u64 = 1 << 26;
 
 /// `<tag type="plugin">` for messages.
 fn describe(o: &Object) -> String {
@@ -306,7 +308,7 @@ pub fn from_xml(root: &Object) -> Result<SceneDescription> {
             _ => return Err(unexpected_child(root, o)),
         }
     }
-    let sensor = sensor.ok_or_else(|| Error::Invalid("the scene has no <sensor>".into()))?;
+    let sensor = sensor.ok_or_else(|| Error::scene(&root.location, "the scene has no <sensor>"))?;
     Ok(SceneDescription {
         integrator: integrator.unwrap_or(IntegratorDesc::Path {
             max_depth: -1,
@@ -477,6 +479,12 @@ fn film_desc(o: &Object) -> Result<FilmDesc> {
                 format!("film {name} must be between 1 and {MAX_RESOLUTION}, got {v}"),
             ));
         }
+    }
+    if width as u64 * height as u64 > MAX_PIXELS {
+        return Err(Error::scene(
+            &o.location,
+            format!("film of {width}x{height} pixels exceeds the limit of {MAX_PIXELS} pixels"),
+        ));
     }
     let mut rfilter = None;
     for Child { object: c, .. } in &o.children {

@@ -151,9 +151,9 @@ pub struct Object {
 /// Errors: [`Error::Io`] if the file cannot be read, [`Error::Xml`] if it is not UTF-8 or not
 /// well-formed XML, [`Error::Scene`] for everything the scene says that is not accepted.
 pub fn load_file(path: &Path, overrides: &[(String, String)]) -> Result<Object> {
-    let text = std::fs::read(path).map_err(|source| Error::Io {
+    let text = std::fs::read(path).map_err(|cause| Error::Io {
         path: path.to_path_buf(),
-        source,
+        cause,
     })?;
     let text = decode_utf8(path, text)?;
     load_str(&text, path, overrides)

@@ -22,7 +22,17 @@ pub fn load(rel: &str, defines: &[(&str, &str)]) -> Scene {
 }
 
 pub fn render_scene(scene: &Scene, spp: u32, seed: u64, threads: Option<usize>) -> RenderOutput {
-    render(scene, &RenderSettings { spp, seed, threads }, &|_, _| {}).expect("render")
+    render(
+        scene,
+        &RenderSettings {
+            spp,
+            seed,
+            threads,
+            first_sample: 0,
+        },
+        &|_, _| {},
+    )
+    .expect("render")
 }
 
 /// Per-channel mean over all pixels of the image and the standard error of that mean,

@@ -1,0 +1,1623 @@
+//! The typed scene description: `scene::xml::load_str` followed by
+//! `scene::description::from_xml`, for every supported plugin and parameter, Mitsuba's
+//! defaults, and the errors for everything outside the supported subset.
+
+use glam::{DMat4, DVec3, DVec4};
+use penumbra::camera::FovAxis;
+use penumbra::scene::build::build;
+use penumbra::scene::description::{
+    from_xml, BsdfDesc, EmitterDesc, FilterDesc, IntegratorDesc, SamplerDesc, SceneDescription,
+    ShapeDesc, ShapeKind, MAX_RESOLUTION,
+};
+use penumbra::scene::xml::load_str;
+use penumbra::shape::ShapeGeometry;
+use std::path::{Path, PathBuf};
+
+/// The path the scenes pretend to come from (it is never read).
+const FILE: &str = "/virtual/dir/scene.xml";
+
+/// A valid sensor: perspective, 32x24 box-filtered hdrfilm, no sampler.
+const SENSOR: &str = r#"<sensor type="perspective">
+    <float name="fov" value="45"/>
+    <film type="hdrfilm">
+        <integer name="width" value="32"/>
+        <integer name="height" value="24"/>
+        <rfilter type="box"/>
+    </film>
+</sensor>"#;
+
+fn scene(body: &str) -> String {
+    format!("<scene version=\"3.0.0\">\n{body}\n</scene>\n")
+}
+
+/// A scene with [`SENSOR`] followed by `body`.
+fn with_sensor(body: &str) -> String {
+    scene(&format!("{SENSOR}\n{body}"))
+}
+
+/// A scene whose sensor has the extra `props` and the film the extra `film_props`, and
+/// whose film's children are `film_children`.
+fn sensor_scene(props: &str, film_props: &str, film_children: &str) -> String {
+    scene(&format!(
+        r#"<sensor type="perspective">
+    {props}
+    <film type="hdrfilm">
+        {film_props}
+        {film_children}
+    </film>
+</sensor>"#
+    ))
+}
+
+fn parse(xml: &str) -> penumbra::Result<SceneDescription> {
+    let root = load_str(xml, Path::new(FILE), &[])?;
+    from_xml(&root)
+}
+
+fn desc(xml: &str) -> SceneDescription {
+    parse(xml).unwrap_or_else(|e| panic!("expected a valid scene, got: {e}\n{xml}"))
+}
+
+fn error(xml: &str) -> String {
+    match parse(xml) {
+        Ok(d) => panic!("expected an error, got {d:?}\n{xml}"),
+        Err(e) => e.to_string(),
+    }
+}
+
+/// The 1-based line of the first occurrence of `needle` in `xml`.
+fn line_of(xml: &str, needle: &str) -> usize {
+    let offset = xml
+        .find(needle)
+        .unwrap_or_else(|| panic!("{needle} not in {xml}"));
+    1 + xml[..offset].matches('\n').count()
+}
+
+/// Asserts that the error of `xml` starts with the location of the line holding `at` and
+/// contains every one of `parts`.
+fn assert_error(xml: &str, at: &str, parts: &[&str]) {
+    let message = error(xml);
+    let location = format!("{FILE}:{}:", line_of(xml, at));
+    assert!(
+        message.starts_with(&location),
+        "error should start with {location}: {message}"
+    );
+    for part in parts {
+        assert!(
+            message.contains(part),
+            "error should contain {part:?}: {message}"
+        );
+    }
+}
+
+/// The only shape of a scene made of [`SENSOR`] and `shape`.
+fn one_shape(shape: &str) -> ShapeDesc {
+    let mut d = desc(&with_sensor(shape));
+    assert_eq!(d.shapes.len(), 1);
+    d.shapes.remove(0)
+}
+
+fn assert_mat(actual: DMat4, expected: DMat4) {
+    assert!(
+        actual.abs_diff_eq(expected, 1e-12),
+        "got {actual:?}, expected {expected:?}"
+    );
+}
+
+const PATH_DEFAULTS: IntegratorDesc = IntegratorDesc::Path {
+    max_depth: -1,
+    rr_depth: 5,
+    hide_emitters: false,
+};
+
+// ---------------------------------------------------------------------------------------
+// Integrator
+// ---------------------------------------------------------------------------------------
+
+#[test]
+fn absent_integrator_is_path_with_defaults() {
+    let d = desc(&scene(SENSOR));
+    assert_eq!(d.integrator, PATH_DEFAULTS);
+    assert!(d.shapes.is_empty());
+}
+
+#[test]
+fn path_integrator_defaults() {
+    let d = desc(&with_sensor(r#"<integrator type="path"/>"#));
+    assert_eq!(d.integrator, PATH_DEFAULTS);
+}
+
+#[test]
+fn path_integrator_parameters() {
+    let d = desc(&with_sensor(
+        r#"<integrator type="path">
+    <integer name="max_depth" value="8"/>
+    <integer name="rr_depth" value="3"/>
+    <boolean name="hide_emitters" value="true"/>
+</integrator>"#,
+    ));
+    assert_eq!(
+        d.integrator,
+        IntegratorDesc::Path {
+            max_depth: 8,
+            rr_depth: 3,
+            hide_emitters: true
+        }
+    );
+    // The boundaries: -1 (unbounded), 0 and rr_depth 1 are valid.
+    for (max_depth, rr_depth) in [(-1, 1), (0, 1), (1, 100)] {
+        let d = desc(&with_sensor(&format!(
+            r#"<integrator type="path">
+    <integer name="max_depth" value="{max_depth}"/>
+    <integer name="rr_depth" value="{rr_depth}"/>
+</integrator>"#
+        )));
+        assert_eq!(
+            d.integrator,
+            IntegratorDesc::Path {
+                max_depth,
+                rr_depth,
+                hide_emitters: false
+            }
+        );
+    }
+}
+
+#[test]
+fn integrator_order_does_not_matter() {
+    let d = desc(&scene(&format!(
+        "{SENSOR}\n<integrator type=\"path\"><integer name=\"max_depth\" value=\"2\"/></integrator>"
+    )));
+    assert_eq!(
+        d.integrator,
+        IntegratorDesc::Path {
+            max_depth: 2,
+            rr_depth: 5,
+            hide_emitters: false
+        }
+    );
+}
+
+#[test]
+fn max_depth_below_minus_one_fails() {
+    let xml = with_sensor(
+        r#"<integrator type="path">
+    <integer name="max_depth" value="-2"/>
+</integrator>"#,
+    );
+    assert_error(
+        &xml,
+        "<integrator",
+        &["max_depth", "<integrator type=\"path\">", "got -2"],
+    );
+}
+
+#[test]
+fn rr_depth_must_be_positive() {
+    for value in ["0", "-1"] {
+        let xml = with_sensor(&format!(
+            r#"<integrator type="path">
+    <integer name="rr_depth" value="{value}"/>
+</integrator>"#
+        ));
+        assert_error(
+            &xml,
+            "<integrator",
+            &[
+                "rr_depth",
+                "<integrator type=\"path\">",
+                &format!("got {value}"),
+            ],
+        );
+    }
+}
+
+#[test]
+fn unknown_integrator_fails() {
+    let xml = with_sensor(r#"<integrator type="volpath"/>"#);
+    assert_error(
+        &xml,
+        "<integrator",
+        &["unsupported plugin <integrator type=\"volpath\">"],
+    );
+}
+
+#[test]
+fn integrator_parameter_errors() {
+    let xml = with_sensor(
+        r#"<integrator type="path">
+    <float name="max_depth" value="3"/>
+</integrator>"#,
+    );
+    assert_error(
+        &xml,
+        "<float name=\"max_depth\"",
+        &["parameter 'max_depth' of <integrator type=\"path\"> must be an integer, not float"],
+    );
+    let xml = with_sensor(
+        r#"<integrator type="path">
+    <integer name="samples_per_pass" value="3"/>
+</integrator>"#,
+    );
+    assert_error(
+        &xml,
+        "samples_per_pass",
+        &["unknown parameter 'samples_per_pass' (integer) of <integrator type=\"path\">"],
+    );
+    let xml = with_sensor(
+        r#"<integrator type="path">
+    <string name="hide_emitters" value="true"/>
+</integrator>"#,
+    );
+    assert_error(
+        &xml,
+        "hide_emitters",
+        &["parameter 'hide_emitters' of <integrator type=\"path\"> must be a boolean, not string"],
+    );
+}
+
+#[test]
+fn two_integrators_fail() {
+    let xml = with_sensor("<integrator type=\"path\"/>\n<integrator type=\"path\"/>");
+    let second = line_of(&xml, "<integrator") + 1;
+    let message = error(&xml);
+    assert!(
+        message.starts_with(&format!("{FILE}:{second}:")),
+        "{message}"
+    );
+    assert!(message.contains("at most one <integrator>"), "{message}");
+}
+
+// ---------------------------------------------------------------------------------------
+// Sensor
+// ---------------------------------------------------------------------------------------
+
+#[test]
+fn perspective_sensor_defaults() {
+    let xml = scene(SENSOR);
+    let s = desc(&xml).sensor;
+    assert_eq!(s.fov, 45.0);
+    assert_eq!(s.fov_axis, FovAxis::X);
+    assert_eq!(s.near_clip, 0.01);
+    assert_eq!(s.far_clip, 1e4);
+    assert_eq!(s.to_world, DMat4::IDENTITY);
+    assert_eq!(s.location.file, PathBuf::from(FILE));
+    assert_eq!(s.location.line as usize, line_of(&xml, "<sensor"));
+}
+
+#[test]
+fn perspective_sensor_parameters() {
+    let xml = sensor_scene(
+        r#"<float name="fov" value="39.3077"/>
+    <float name="near_clip" value="0.001"/>
+    <float name="far_clip" value="100"/>
+    <float name="focus_distance" value="1000"/>
+    <transform name="to_world">
+        <lookat origin="0, 0, 3.9" target="0, 0, 0" up="0, 1, 0"/>
+    </transform>"#,
+        "",
+        r#"<rfilter type="box"/>"#,
+    );
+    let s = desc(&xml).sensor;
+    assert_eq!(s.fov, 39.3077);
+    assert_eq!(s.near_clip, 0.001);
+    assert_eq!(s.far_clip, 100.0);
+    // Mitsuba's look_at: columns (left, up, dir, origin).
+    let expected = DMat4::from_cols(
+        DVec4::new(-1.0, 0.0, 0.0, 0.0),
+        DVec4::new(0.0, 1.0, 0.0, 0.0),
+        DVec4::new(0.0, 0.0, -1.0, 0.0),
+        DVec4::new(0.0, 0.0, 3.9, 1.0),
+    );
+    assert_mat(s.to_world, expected);
+}
+
+#[test]
+fn integer_fov_is_accepted_as_float() {
+    let xml = sensor_scene(
+        r#"<integer name="fov" value="60"/>"#,
+        "",
+        r#"<rfilter type="box"/>"#,
+    );
+    assert_eq!(desc(&xml).sensor.fov, 60.0);
+}
+
+#[test]
+fn every_fov_axis() {
+    for (name, axis) in [
+        ("x", FovAxis::X),
+        ("y", FovAxis::Y),
+        ("diagonal", FovAxis::Diagonal),
+        ("smaller", FovAxis::Smaller),
+        ("larger", FovAxis::Larger),
+    ] {
+        let xml = sensor_scene(
+            &format!(
+                r#"<float name="fov" value="30"/>
+    <string name="fov_axis" value="{name}"/>"#
+            ),
+            "",
+            r#"<rfilter type="box"/>"#,
+        );
+        assert_eq!(desc(&xml).sensor.fov_axis, axis, "{name}");
+    }
+    let xml = sensor_scene(
+        r#"<float name="fov" value="30"/>
+    <string name="fov_axis" value="z"/>"#,
+        "",
+        r#"<rfilter type="box"/>"#,
+    );
+    assert_error(
+        &xml,
+        "fov_axis",
+        &["fov_axis must be x, y, diagonal, smaller or larger, not 'z'"],
+    );
+}
+
+#[test]
+fn fov_is_required() {
+    let xml = sensor_scene("", "", r#"<rfilter type="box"/>"#);
+    assert_error(
+        &xml,
+        "<sensor",
+        &["<sensor type=\"perspective\"> needs a 'fov'"],
+    );
+}
+
+#[test]
+fn fov_must_lie_in_open_interval() {
+    for fov in ["0", "180", "-10", "200"] {
+        let xml = sensor_scene(
+            &format!(r#"<float name="fov" value="{fov}"/>"#),
+            "",
+            r#"<rfilter type="box"/>"#,
+        );
+        assert_error(
+            &xml,
+            "<sensor",
+            &[
+                "fov of <sensor type=\"perspective\"> must lie in (0, 180) degrees",
+                &format!("got {fov}"),
+            ],
+        );
+    }
+    for fov in ["0.001", "179.9"] {
+        let xml = sensor_scene(
+            &format!(r#"<float name="fov" value="{fov}"/>"#),
+            "",
+            r#"<rfilter type="box"/>"#,
+        );
+        assert_eq!(desc(&xml).sensor.fov, fov.parse::<f64>().unwrap());
+    }
+}
+
+#[test]
+fn clip_planes_are_checked() {
+    let case = |props: &str| {
+        sensor_scene(
+            &format!("<float name=\"fov\" value=\"30\"/>\n    {props}"),
+            "",
+            r#"<rfilter type="box"/>"#,
+        )
+    };
+    assert_error(
+        &case(r#"<float name="near_clip" value="0"/>"#),
+        "<sensor",
+        &["near_clip of <sensor type=\"perspective\"> must be positive, got 0"],
+    );
+    assert_error(
+        &case(r#"<float name="far_clip" value="-1"/>"#),
+        "<sensor",
+        &["far_clip of <sensor type=\"perspective\"> must be positive, got -1"],
+    );
+    assert_error(
+        &case(r#"<float name="near_clip" value="5"/><float name="far_clip" value="5"/>"#),
+        "<sensor",
+        &["near_clip (5) must be less than far_clip (5)"],
+    );
+}
+
+#[test]
+fn sensor_errors() {
+    let xml = scene(
+        r#"<sensor type="orthographic">
+    <float name="fov" value="30"/>
+</sensor>"#,
+    );
+    assert_error(
+        &xml,
+        "<sensor",
+        &["unsupported plugin <sensor type=\"orthographic\">"],
+    );
+    let xml = sensor_scene(
+        r#"<float name="fov" value="30"/>
+    <float name="aperture_radius" value="0.1"/>"#,
+        "",
+        r#"<rfilter type="box"/>"#,
+    );
+    assert_error(
+        &xml,
+        "aperture_radius",
+        &["unknown parameter 'aperture_radius' (float) of <sensor type=\"perspective\">"],
+    );
+    let xml = sensor_scene(
+        r#"<float name="fov" value="30"/>
+    <float name="to_world" value="1"/>"#,
+        "",
+        r#"<rfilter type="box"/>"#,
+    );
+    assert_error(
+        &xml,
+        "to_world",
+        &["parameter 'to_world' of <sensor type=\"perspective\"> must be a transform, not float"],
+    );
+    let xml = scene(
+        r#"<sensor type="perspective">
+    <float name="fov" value="30"/>
+</sensor>"#,
+    );
+    assert_error(
+        &xml,
+        "<sensor",
+        &["<sensor type=\"perspective\"> has no <film>", "gaussian"],
+    );
+    let xml = scene(
+        r#"<sensor type="perspective">
+    <float name="fov" value="30"/>
+    <film type="hdrfilm"><rfilter type="box"/></film>
+    <bsdf type="diffuse"/>
+</sensor>"#,
+    );
+    assert_error(
+        &xml,
+        "<bsdf",
+        &["<bsdf type=\"diffuse\"> cannot be nested in <sensor type=\"perspective\">"],
+    );
+}
+
+#[test]
+fn missing_sensor_fails() {
+    let message = error(&scene(r#"<shape type="sphere"/>"#));
+    assert!(message.contains("no <sensor>"), "{message}");
+    let message = error(&scene(""));
+    assert!(message.contains("no <sensor>"), "{message}");
+}
+
+#[test]
+fn two_sensors_fail() {
+    let xml = scene(&format!("{SENSOR}\n{SENSOR}"));
+    let second = xml.rfind("<sensor").unwrap();
+    let line = 1 + xml[..second].matches('\n').count();
+    let message = error(&xml);
+    assert!(message.starts_with(&format!("{FILE}:{line}:")), "{message}");
+    assert!(message.contains("exactly one <sensor>"), "{message}");
+}
+
+// ---------------------------------------------------------------------------------------
+// Film
+// ---------------------------------------------------------------------------------------
+
+#[test]
+fn hdrfilm_defaults_and_size() {
+    let xml = sensor_scene(
+        r#"<float name="fov" value="30"/>"#,
+        "",
+        r#"<rfilter type="box"/>"#,
+    );
+    let film = desc(&xml).sensor.film;
+    assert_eq!((film.width, film.height), (768, 576));
+    assert_eq!(film.rfilter, FilterDesc::Box);
+    let film = desc(&scene(SENSOR)).sensor.film;
+    assert_eq!((film.width, film.height), (32, 24));
+    let film = desc(&sensor_scene(
+        r#"<float name="fov" value="30"/>"#,
+        r#"<integer name="width" value="1"/><integer name="height" value="1"/>"#,
+        r#"<rfilter type="box"><float name="radius" value="0.5"/></rfilter>"#,
+    ))
+    .sensor
+    .film;
+    assert_eq!((film.width, film.height), (1, 1));
+    let max = MAX_RESOLUTION;
+    let film = desc(&sensor_scene(
+        r#"<float name="fov" value="30"/>"#,
+        &format!(r#"<integer name="width" value="{max}"/><integer name="height" value="7"/>"#),
+        r#"<rfilter type="box"/>"#,
+    ))
+    .sensor
+    .film;
+    assert_eq!((film.width, film.height), (max, 7));
+}
+
+#[test]
+fn component_and_pixel_formats() {
+    for format in ["float16", "float32", "uint32"] {
+        let xml = sensor_scene(
+            r#"<float name="fov" value="30"/>"#,
+            &format!(r#"<string name="component_format" value="{format}"/>"#),
+            r#"<rfilter type="box"/>"#,
+        );
+        desc(&xml);
+    }
+    let xml = sensor_scene(
+        r#"<float name="fov" value="30"/>"#,
+        r#"<string name="component_format" value="float64"/>"#,
+        r#"<rfilter type="box"/>"#,
+    );
+    assert_error(
+        &xml,
+        "component_format",
+        &["component_format must be float16, float32 or uint32, not 'float64'"],
+    );
+    let xml = sensor_scene(
+        r#"<float name="fov" value="30"/>"#,
+        r#"<string name="pixel_format" value="rgb"/>"#,
+        r#"<rfilter type="box"/>"#,
+    );
+    desc(&xml);
+    for format in ["rgba", "luminance", "xyz"] {
+        let xml = sensor_scene(
+            r#"<float name="fov" value="30"/>"#,
+            &format!(r#"<string name="pixel_format" value="{format}"/>"#),
+            r#"<rfilter type="box"/>"#,
+        );
+        assert_error(
+            &xml,
+            "pixel_format",
+            &[&format!("pixel_format '{format}' is not supported")],
+        );
+    }
+}
+
+#[test]
+fn only_the_box_filter_is_accepted() {
+    for filter in ["gaussian", "tent", "lanczos", "mitchell"] {
+        let xml = sensor_scene(
+            r#"<float name="fov" value="30"/>"#,
+            "",
+            &format!(r#"<rfilter type="{filter}"/>"#),
+        );
+        assert_error(
+            &xml,
+            "<rfilter",
+            &[
+                &format!("unsupported plugin <rfilter type=\"{filter}\">"),
+                "box",
+            ],
+        );
+    }
+    let xml = sensor_scene(r#"<float name="fov" value="30"/>"#, "", "");
+    assert_error(
+        &xml,
+        "<film",
+        &["<film type=\"hdrfilm\"> has no <rfilter>", "gaussian"],
+    );
+    let xml = sensor_scene(
+        r#"<float name="fov" value="30"/>"#,
+        "",
+        r#"<rfilter type="box"><float name="radius" value="1"/></rfilter>"#,
+    );
+    assert_error(&xml, "<rfilter", &["default radius 0.5"]);
+    let xml = sensor_scene(
+        r#"<float name="fov" value="30"/>"#,
+        "",
+        r#"<rfilter type="box"/><rfilter type="box"/>"#,
+    );
+    assert_error(
+        &xml,
+        "<rfilter",
+        &["<rfilter type=\"box\"> cannot be nested in <film type=\"hdrfilm\">"],
+    );
+}
+
+#[test]
+fn bad_resolutions_are_refused() {
+    for (name, value) in [
+        ("width", "0"),
+        ("height", "0"),
+        ("width", "-1"),
+        ("height", "-640"),
+        ("width", "65537"),
+        ("width", "1000000000"),
+        ("height", "1000000000"),
+        ("width", "9223372036854775807"),
+    ] {
+        let xml = sensor_scene(
+            r#"<float name="fov" value="30"/>"#,
+            &format!(r#"<integer name="{name}" value="{value}"/>"#),
+            r#"<rfilter type="box"/>"#,
+        );
+        assert_error(
+            &xml,
+            "<film",
+            &[&format!(
+                "film {name} must be between 1 and {MAX_RESOLUTION}, got {value}"
+            )],
+        );
+    }
+}
+
+#[test]
+fn huge_pixel_counts_are_refused_before_allocating() {
+    let xml = sensor_scene(
+        r#"<float name="fov" value="30"/>"#,
+        r#"<integer name="width" value="65536"/><integer name="height" value="65536"/>"#,
+        r#"<rfilter type="box"/>"#,
+    );
+    assert_error(
+        &xml,
+        "<film",
+        &["film of 65536x65536 pixels exceeds the limit of 67108864 pixels"],
+    );
+}
+
+#[test]
+fn film_errors() {
+    let xml = sensor_scene(
+        r#"<float name="fov" value="30"/>"#,
+        r#"<float name="width" value="32"/>"#,
+        r#"<rfilter type="box"/>"#,
+    );
+    assert_error(
+        &xml,
+        "name=\"width\"",
+        &["parameter 'width' of <film type=\"hdrfilm\"> must be an integer, not float"],
+    );
+    let xml = sensor_scene(
+        r#"<float name="fov" value="30"/>"#,
+        r#"<integer name="widht" value="32"/>"#,
+        r#"<rfilter type="box"/>"#,
+    );
+    assert_error(
+        &xml,
+        "widht",
+        &["unknown parameter 'widht' (integer) of <film type=\"hdrfilm\">"],
+    );
+    let xml = scene(
+        r#"<sensor type="perspective">
+    <float name="fov" value="30"/>
+    <film type="ldrfilm"><rfilter type="box"/></film>
+</sensor>"#,
+    );
+    assert_error(
+        &xml,
+        "<film",
+        &["unsupported plugin <film type=\"ldrfilm\">"],
+    );
+}
+
+// ---------------------------------------------------------------------------------------
+// Sampler
+// ---------------------------------------------------------------------------------------
+
+#[test]
+fn independent_sampler() {
+    let absent = desc(&scene(SENSOR)).sensor.sampler;
+    assert_eq!(
+        absent,
+        SamplerDesc {
+            sample_count: 4,
+            seed: 0
+        }
+    );
+    let empty = desc(&sensor_scene(
+        r#"<float name="fov" value="30"/><sampler type="independent"/>"#,
+        "",
+        r#"<rfilter type="box"/>"#,
+    ))
+    .sensor
+    .sampler;
+    assert_eq!(
+        empty,
+        SamplerDesc {
+            sample_count: 4,
+            seed: 0
+        }
+    );
+    let given = desc(&sensor_scene(
+        r#"<float name="fov" value="30"/>
+    <sampler type="independent">
+        <integer name="sample_count" value="64"/>
+        <integer name="seed" value="1234"/>
+    </sampler>"#,
+        "",
+        r#"<rfilter type="box"/>"#,
+    ))
+    .sensor
+    .sampler;
+    assert_eq!(
+        given,
+        SamplerDesc {
+            sample_count: 64,
+            seed: 1234
+        }
+    );
+}
+
+#[test]
+fn sampler_errors() {
+    let case = |sampler: &str| {
+        sensor_scene(
+            &format!("<float name=\"fov\" value=\"30\"/>\n    {sampler}"),
+            "",
+            r#"<rfilter type="box"/>"#,
+        )
+    };
+    assert_error(
+        &case(r#"<sampler type="stratified"/>"#),
+        "<sampler",
+        &["unsupported plugin <sampler type=\"stratified\">"],
+    );
+    assert_error(
+        &case(r#"<sampler type="independent"><integer name="sample_count" value="0"/></sampler>"#),
+        "<sampler",
+        &["sample_count must be between 1 and 4294967295, got 0"],
+    );
+    assert_error(
+        &case(r#"<sampler type="independent"><integer name="seed" value="-1"/></sampler>"#),
+        "<sampler",
+        &["seed must be >= 0, got -1"],
+    );
+    assert_error(
+        &case(r#"<sampler type="independent"><integer name="spp" value="4"/></sampler>"#),
+        "name=\"spp\"",
+        &["unknown parameter 'spp' (integer) of <sampler type=\"independent\">"],
+    );
+}
+
+// ---------------------------------------------------------------------------------------
+// Shapes
+// ---------------------------------------------------------------------------------------
+
+#[test]
+fn simple_shapes_with_defaults() {
+    for (plugin, kind) in [
+        ("rectangle", ShapeKind::Rectangle),
+        ("cube", ShapeKind::Cube),
+        ("disk", ShapeKind::Disk),
+        (
+            "sphere",
+            ShapeKind::Sphere {
+                center: DVec3::ZERO,
+                radius: 1.0,
+            },
+        ),
+    ] {
+        let xml = with_sensor(&format!(r#"<shape type="{plugin}"/>"#));
+        let mut d = desc(&xml);
+        let s = d.shapes.remove(0);
+        assert_eq!(s.kind, kind);
+        assert_eq!(s.to_world, DMat4::IDENTITY);
+        assert!(!s.flip_normals);
+        assert_eq!(s.bsdf, BsdfDesc::default_diffuse());
+        assert_eq!(s.emitter, None);
+        assert_eq!(s.location.line as usize, line_of(&xml, "<shape"));
+    }
+}
+
+#[test]
+fn default_bsdf_is_diffuse_one_half() {
+    assert_eq!(
+        BsdfDesc::default_diffuse(),
+        BsdfDesc::Diffuse {
+            reflectance: DVec3::splat(0.5)
+        }
+    );
+}
+
+#[test]
+fn shapes_keep_document_order() {
+    let d = desc(&with_sensor(
+        r#"<shape type="cube"/>
+<shape type="disk"/>
+<shape type="rectangle"/>"#,
+    ));
+    let kinds: Vec<ShapeKind> = d.shapes.into_iter().map(|s| s.kind).collect();
+    assert_eq!(
+        kinds,
+        [ShapeKind::Cube, ShapeKind::Disk, ShapeKind::Rectangle]
+    );
+}
+
+#[test]
+fn flip_normals_and_to_world() {
+    for plugin in ["rectangle", "cube", "disk", "sphere"] {
+        let s = one_shape(&format!(
+            r#"<shape type="{plugin}">
+    <boolean name="flip_normals" value="true"/>
+    <transform name="to_world">
+        <scale value="2"/>
+        <translate value="1, 2, 3"/>
+    </transform>
+</shape>"#
+        ));
+        assert!(s.flip_normals, "{plugin}");
+        let expected = DMat4::from_translation(DVec3::new(1.0, 2.0, 3.0))
+            * DMat4::from_scale(DVec3::splat(2.0));
+        assert_mat(s.to_world, expected);
+    }
+}
+
+#[test]
+fn sphere_center_and_radius() {
+    let s = one_shape(
+        r#"<shape type="sphere">
+    <point name="center" x="1" y="-2" z="3.5"/>
+    <float name="radius" value="2.5"/>
+</shape>"#,
+    );
+    assert_eq!(
+        s.kind,
+        ShapeKind::Sphere {
+            center: DVec3::new(1.0, -2.0, 3.5),
+            radius: 2.5
+        }
+    );
+    let s = one_shape(
+        r#"<shape type="sphere">
+    <point name="center" value="0, 1, 0"/>
+    <integer name="radius" value="3"/>
+</shape>"#,
+    );
+    assert_eq!(
+        s.kind,
+        ShapeKind::Sphere {
+            center: DVec3::Y,
+            radius: 3.0
+        }
+    );
+}
+
+#[test]
+fn sphere_radius_must_be_positive() {
+    for radius in ["0", "-1"] {
+        let xml = with_sensor(&format!(
+            r#"<shape type="sphere">
+    <float name="radius" value="{radius}"/>
+</shape>"#
+        ));
+        assert_error(
+            &xml,
+            "<shape",
+            &[&format!(
+                "radius of <shape type=\"sphere\"> must be positive, got {radius}"
+            )],
+        );
+    }
+}
+
+#[test]
+fn obj_shape() {
+    let s = one_shape(
+        r#"<shape type="obj">
+    <string name="filename" value="meshes/bunny.obj"/>
+</shape>"#,
+    );
+    assert_eq!(
+        s.kind,
+        ShapeKind::Obj {
+            filename: PathBuf::from("/virtual/dir/meshes/bunny.obj"),
+            face_normals: false,
+            flip_tex_coords: true,
+        }
+    );
+    let s = one_shape(
+        r#"<shape type="obj">
+    <string name="filename" value="/abs/mesh.obj"/>
+    <boolean name="face_normals" value="true"/>
+    <boolean name="flip_tex_coords" value="false"/>
+    <boolean name="flip_normals" value="true"/>
+    <transform name="to_world"><translate value="0, 0, -1"/></transform>
+</shape>"#,
+    );
+    assert_eq!(
+        s.kind,
+        ShapeKind::Obj {
+            filename: PathBuf::from("/abs/mesh.obj"),
+            face_normals: true,
+            flip_tex_coords: false,
+        }
+    );
+    assert!(s.flip_normals);
+    assert_eq!(s.to_world, DMat4::from_translation(DVec3::NEG_Z));
+}
+
+#[test]
+fn obj_filename_is_relative_to_the_scene_file() {
+    let xml = with_sensor(r#"<shape type="obj"><string name="filename" value="m.obj"/></shape>"#);
+    let root = load_str(&xml, Path::new("relative/sub/s.xml"), &[]).unwrap();
+    let d = from_xml(&root).unwrap();
+    match &d.shapes[0].kind {
+        ShapeKind::Obj { filename, .. } => {
+            assert_eq!(filename, &PathBuf::from("relative/sub/m.obj"))
+        }
+        other => panic!("not an obj: {other:?}"),
+    }
+}
+
+#[test]
+fn obj_errors() {
+    let xml = with_sensor(r#"<shape type="obj"/>"#);
+    assert_error(&xml, "<shape", &["<shape type=\"obj\"> needs a 'filename'"]);
+    let xml = with_sensor(
+        r#"<shape type="obj">
+    <string name="filename" value="a.obj"/>
+    <string name="face_normals" value="yes"/>
+</shape>"#,
+    );
+    assert_error(
+        &xml,
+        "face_normals",
+        &["parameter 'face_normals' of <shape type=\"obj\"> must be a boolean, not string"],
+    );
+    let xml = with_sensor(
+        r#"<shape type="obj">
+    <float name="filename" value="1"/>
+</shape>"#,
+    );
+    assert_error(
+        &xml,
+        "name=\"filename\"",
+        &["parameter 'filename' of <shape type=\"obj\"> must be a string, not float"],
+    );
+}
+
+#[test]
+fn unknown_shape_plugins_fail() {
+    for plugin in ["ply", "serialized", "cylinder", "instance"] {
+        let xml = with_sensor(&format!(r#"<shape type="{plugin}"/>"#));
+        assert_error(
+            &xml,
+            "<shape",
+            &[&format!("unsupported plugin <shape type=\"{plugin}\">")],
+        );
+    }
+}
+
+#[test]
+fn unknown_shape_parameter_fails() {
+    let xml = with_sensor(
+        r#"<shape type="sphere">
+    <float name="radiuss" value="2"/>
+</shape>"#,
+    );
+    assert_error(
+        &xml,
+        "radiuss",
+        &["unknown parameter 'radiuss' (float) of <shape type=\"sphere\">"],
+    );
+    // A parameter of another shape is unknown too.
+    let xml = with_sensor(
+        r#"<shape type="rectangle">
+    <float name="radius" value="2"/>
+</shape>"#,
+    );
+    assert_error(
+        &xml,
+        "name=\"radius\"",
+        &["unknown parameter 'radius' (float) of <shape type=\"rectangle\">"],
+    );
+}
+
+#[test]
+fn wrong_property_types_fail() {
+    for (property, parts) in [
+        (
+            r#"<string name="radius" value="2"/>"#,
+            "parameter 'radius' of <shape type=\"sphere\"> must be a float, not string",
+        ),
+        (
+            r#"<rgb name="center" value="1, 2, 3"/>"#,
+            "parameter 'center' of <shape type=\"sphere\"> must be a point, not rgb",
+        ),
+        (
+            r#"<integer name="flip_normals" value="1"/>"#,
+            "parameter 'flip_normals' of <shape type=\"sphere\"> must be a boolean, not integer",
+        ),
+        (
+            r#"<point name="to_world" value="1, 2, 3"/>"#,
+            "parameter 'to_world' of <shape type=\"sphere\"> must be a transform, not point",
+        ),
+    ] {
+        let xml = with_sensor(&format!(
+            "<shape type=\"sphere\">\n    {property}\n</shape>"
+        ));
+        assert_error(&xml, property, &[parts]);
+    }
+}
+
+#[test]
+fn shape_children_errors() {
+    let xml = with_sensor(
+        r#"<shape type="sphere">
+    <bsdf type="diffuse"/>
+    <bsdf type="diffuse"/>
+</shape>"#,
+    );
+    let second = line_of(&xml, "<bsdf") + 1;
+    let message = error(&xml);
+    assert!(
+        message.starts_with(&format!("{FILE}:{second}:")),
+        "{message}"
+    );
+    assert!(
+        message.contains("<shape type=\"sphere\"> has more than one <bsdf>"),
+        "{message}"
+    );
+    let xml = with_sensor(
+        r#"<shape type="sphere">
+    <emitter type="area"><rgb name="radiance" value="1"/></emitter>
+    <emitter type="area"><rgb name="radiance" value="1"/></emitter>
+</shape>"#,
+    );
+    let second = line_of(&xml, "<emitter") + 1;
+    let message = error(&xml);
+    assert!(
+        message.starts_with(&format!("{FILE}:{second}:")),
+        "{message}"
+    );
+    assert!(
+        message.contains("<shape type=\"sphere\"> has more than one <emitter>"),
+        "{message}"
+    );
+    let xml = with_sensor(
+        r#"<shape type="sphere">
+    <shape type="sphere"/>
+</shape>"#,
+    );
+    let inner = line_of(&xml, "<shape") + 1;
+    let message = error(&xml);
+    assert!(
+        message.starts_with(&format!("{FILE}:{inner}:")),
+        "{message}"
+    );
+    assert!(
+        message.contains("<shape type=\"sphere\"> cannot be nested in <shape type=\"sphere\">"),
+        "{message}"
+    );
+}
+
+// ---------------------------------------------------------------------------------------
+// BSDFs
+// ---------------------------------------------------------------------------------------
+
+#[test]
+fn diffuse_reflectance() {
+    let s = one_shape(
+        r#"<shape type="rectangle">
+    <bsdf type="diffuse"><rgb name="reflectance" value="0.2, 0.4, 0.6"/></bsdf>
+</shape>"#,
+    );
+    assert_eq!(
+        s.bsdf,
+        BsdfDesc::Diffuse {
+            reflectance: DVec3::new(0.2, 0.4, 0.6)
+        }
+    );
+    let s = one_shape(
+        r#"<shape type="rectangle">
+    <bsdf type="diffuse"><float name="reflectance" value="0.25"/></bsdf>
+</shape>"#,
+    );
+    assert_eq!(
+        s.bsdf,
+        BsdfDesc::Diffuse {
+            reflectance: DVec3::splat(0.25)
+        }
+    );
+    let s = one_shape(
+        r#"<shape type="rectangle">
+    <bsdf type="diffuse"><rgb name="reflectance" value="0.75"/></bsdf>
+</shape>"#,
+    );
+    assert_eq!(
+        s.bsdf,
+        BsdfDesc::Diffuse {
+            reflectance: DVec3::splat(0.75)
+        }
+    );
+    let s = one_shape(r#"<shape type="rectangle"><bsdf type="diffuse"/></shape>"#);
+    assert_eq!(s.bsdf, BsdfDesc::default_diffuse());
+}
+
+#[test]
+fn twosided_with_one_nested_bsdf_uses_it_on_both_sides() {
+    let s = one_shape(
+        r#"<shape type="rectangle">
+    <bsdf type="twosided">
+        <bsdf type="diffuse"><rgb name="reflectance" value="0.1, 0.2, 0.3"/></bsdf>
+    </bsdf>
+</shape>"#,
+    );
+    let inner = BsdfDesc::Diffuse {
+        reflectance: DVec3::new(0.1, 0.2, 0.3),
+    };
+    assert_eq!(
+        s.bsdf,
+        BsdfDesc::TwoSided {
+            front: Box::new(inner.clone()),
+            back: Box::new(inner)
+        }
+    );
+}
+
+#[test]
+fn twosided_with_two_nested_bsdfs() {
+    let s = one_shape(
+        r#"<shape type="rectangle">
+    <bsdf type="twosided">
+        <bsdf type="diffuse"><rgb name="reflectance" value="0.1, 0.2, 0.3"/></bsdf>
+        <bsdf type="diffuse"><float name="reflectance" value="0.9"/></bsdf>
+    </bsdf>
+</shape>"#,
+    );
+    assert_eq!(
+        s.bsdf,
+        BsdfDesc::TwoSided {
+            front: Box::new(BsdfDesc::Diffuse {
+                reflectance: DVec3::new(0.1, 0.2, 0.3)
+            }),
+            back: Box::new(BsdfDesc::Diffuse {
+                reflectance: DVec3::splat(0.9)
+            }),
+        }
+    );
+}
+
+#[test]
+fn twosided_errors() {
+    let xml = with_sensor(r#"<shape type="rectangle"><bsdf type="twosided"/></shape>"#);
+    assert_error(
+        &xml,
+        "<bsdf",
+        &["<bsdf type=\"twosided\"> needs a nested <bsdf>"],
+    );
+    let xml = with_sensor(
+        r#"<shape type="rectangle">
+    <bsdf type="twosided">
+        <bsdf type="diffuse"/>
+        <bsdf type="diffuse"/>
+        <bsdf type="diffuse"/>
+    </bsdf>
+</shape>"#,
+    );
+    let third = line_of(&xml, "<bsdf type=\"diffuse\"") + 2;
+    let message = error(&xml);
+    assert!(
+        message.starts_with(&format!("{FILE}:{third}:")),
+        "{message}"
+    );
+    assert!(
+        message.contains("<bsdf type=\"diffuse\"> cannot be nested in <bsdf type=\"twosided\">"),
+        "{message}"
+    );
+    let xml = with_sensor(
+        r#"<shape type="rectangle">
+    <bsdf type="twosided">
+        <bsdf type="twosided"><bsdf type="diffuse"/></bsdf>
+    </bsdf>
+</shape>"#,
+    );
+    let inner = line_of(&xml, "<bsdf type=\"twosided\"") + 1;
+    let message = error(&xml);
+    assert!(
+        message.starts_with(&format!("{FILE}:{inner}:")),
+        "{message}"
+    );
+    assert!(
+        message.contains("twosided BSDF cannot nest another twosided"),
+        "{message}"
+    );
+    let xml = with_sensor(
+        r#"<shape type="rectangle">
+    <bsdf type="twosided">
+        <float name="reflectance" value="0.5"/>
+        <bsdf type="diffuse"/>
+    </bsdf>
+</shape>"#,
+    );
+    assert_error(
+        &xml,
+        "<float name=\"reflectance\"",
+        &["unknown parameter 'reflectance' (float) of <bsdf type=\"twosided\">"],
+    );
+}
+
+#[test]
+fn referenced_bsdfs() {
+    let d = desc(&with_sensor(
+        r#"<bsdf type="diffuse" id="red">
+    <rgb name="reflectance" value="0.8, 0.1, 0.1"/>
+</bsdf>
+<bsdf type="twosided" id="two">
+    <ref id="red"/>
+</bsdf>
+<shape type="rectangle"><ref id="red"/></shape>
+<shape type="cube"><ref id="two"/></shape>
+<shape type="disk"><ref name="bsdf" id="red"/></shape>"#,
+    ));
+    let red = BsdfDesc::Diffuse {
+        reflectance: DVec3::new(0.8, 0.1, 0.1),
+    };
+    assert_eq!(d.shapes.len(), 3);
+    assert_eq!(d.shapes[0].bsdf, red);
+    assert_eq!(
+        d.shapes[1].bsdf,
+        BsdfDesc::TwoSided {
+            front: Box::new(red.clone()),
+            back: Box::new(red.clone())
+        }
+    );
+    assert_eq!(d.shapes[2].bsdf, red);
+}
+
+#[test]
+fn unknown_bsdf_plugins_fail() {
+    for plugin in ["roughplastic", "conductor", "dielectric", "plastic"] {
+        let xml = with_sensor(&format!(
+            "<shape type=\"sphere\">\n    <bsdf type=\"{plugin}\"/>\n</shape>"
+        ));
+        assert_error(
+            &xml,
+            "<bsdf",
+            &[&format!("unsupported plugin <bsdf type=\"{plugin}\">")],
+        );
+    }
+    // Declared at the top level and never used: still checked, as Mitsuba instantiates it.
+    let xml = with_sensor(r#"<bsdf type="roughplastic" id="unused"/>"#);
+    assert_error(
+        &xml,
+        "<bsdf",
+        &["unsupported plugin <bsdf type=\"roughplastic\">"],
+    );
+    // Nested in a twosided.
+    let xml = with_sensor(
+        r#"<shape type="sphere">
+    <bsdf type="twosided">
+        <bsdf type="roughplastic"/>
+    </bsdf>
+</shape>"#,
+    );
+    assert_error(
+        &xml,
+        "<bsdf type=\"roughplastic\"",
+        &["unsupported plugin <bsdf type=\"roughplastic\">"],
+    );
+}
+
+#[test]
+fn bsdf_parameter_errors() {
+    let xml = with_sensor(
+        r#"<shape type="sphere">
+    <bsdf type="diffuse">
+        <string name="reflectance" value="red"/>
+    </bsdf>
+</shape>"#,
+    );
+    assert_error(
+        &xml,
+        "<string name=\"reflectance\"",
+        &["parameter 'reflectance' of <bsdf type=\"diffuse\"> must be an rgb or float, not string"],
+    );
+    let xml = with_sensor(
+        r#"<shape type="sphere">
+    <bsdf type="diffuse">
+        <float name="alpha" value="0.1"/>
+    </bsdf>
+</shape>"#,
+    );
+    assert_error(
+        &xml,
+        "alpha",
+        &["unknown parameter 'alpha' (float) of <bsdf type=\"diffuse\">"],
+    );
+    let xml = with_sensor(
+        r#"<shape type="sphere">
+    <bsdf type="diffuse">
+        <texture type="bitmap" name="reflectance"><string name="filename" value="a.png"/></texture>
+    </bsdf>
+</shape>"#,
+    );
+    assert_error(
+        &xml,
+        "<texture",
+        &["<texture type=\"bitmap\"> cannot be nested in <bsdf type=\"diffuse\">"],
+    );
+}
+
+// ---------------------------------------------------------------------------------------
+// Emitters
+// ---------------------------------------------------------------------------------------
+
+#[test]
+fn area_emitter_radiance() {
+    let s = one_shape(
+        r#"<shape type="rectangle">
+    <emitter type="area"><rgb name="radiance" value="18.387, 13.9873, 6.75357"/></emitter>
+</shape>"#,
+    );
+    assert_eq!(
+        s.emitter,
+        Some(EmitterDesc::Area {
+            radiance: DVec3::new(18.387, 13.9873, 6.75357)
+        })
+    );
+    assert_eq!(s.bsdf, BsdfDesc::default_diffuse());
+    let s = one_shape(
+        r#"<shape type="sphere">
+    <emitter type="area"><float name="radiance" value="3"/></emitter>
+    <bsdf type="diffuse"><float name="reflectance" value="0"/></bsdf>
+</shape>"#,
+    );
+    assert_eq!(
+        s.emitter,
+        Some(EmitterDesc::Area {
+            radiance: DVec3::splat(3.0)
+        })
+    );
+    assert_eq!(
+        s.bsdf,
+        BsdfDesc::Diffuse {
+            reflectance: DVec3::ZERO
+        }
+    );
+}
+
+#[test]
+fn area_emitter_errors() {
+    let xml = with_sensor(
+        r#"<shape type="rectangle">
+    <emitter type="area"/>
+</shape>"#,
+    );
+    assert_error(
+        &xml,
+        "<emitter",
+        &["<emitter type=\"area\"> needs a 'radiance'"],
+    );
+    let xml = with_sensor(
+        r#"<shape type="rectangle">
+    <emitter type="area"><rgb name="radiance" value="1, -1, 1"/></emitter>
+</shape>"#,
+    );
+    assert_error(&xml, "<emitter", &["radiance must not be negative"]);
+    let xml = with_sensor(
+        r#"<shape type="rectangle">
+    <emitter type="area">
+        <rgb name="radiance" value="1"/>
+        <float name="scale" value="2"/>
+    </emitter>
+</shape>"#,
+    );
+    assert_error(
+        &xml,
+        "name=\"scale\"",
+        &["unknown parameter 'scale' (float) of <emitter type=\"area\">"],
+    );
+    let xml = with_sensor(
+        r#"<shape type="rectangle">
+    <emitter type="area">
+        <string name="radiance" value="bright"/>
+    </emitter>
+</shape>"#,
+    );
+    assert_error(
+        &xml,
+        "name=\"radiance\"",
+        &["parameter 'radiance' of <emitter type=\"area\"> must be an rgb or float, not string"],
+    );
+}
+
+#[test]
+fn unknown_emitters_fail() {
+    // A point light at the top level is outside the supported subset.
+    let xml = with_sensor(
+        r#"<emitter type="point">
+    <point name="position" value="0, 1, 0"/>
+</emitter>"#,
+    );
+    assert_error(&xml, "<emitter", &["<emitter type=\"point\">"]);
+    // So is an environment light.
+    let xml = with_sensor(r#"<emitter type="constant"/>"#);
+    assert_error(&xml, "<emitter", &["<emitter type=\"constant\">"]);
+    // And a non-area emitter attached to a shape.
+    let xml = with_sensor(
+        r#"<shape type="sphere">
+    <emitter type="point"/>
+</shape>"#,
+    );
+    assert_error(
+        &xml,
+        "<emitter",
+        &["unsupported plugin <emitter type=\"point\">"],
+    );
+}
+
+// ---------------------------------------------------------------------------------------
+// The scene root
+// ---------------------------------------------------------------------------------------
+
+#[test]
+fn scene_root_errors() {
+    let xml = with_sensor(r#"<float name="scale" value="2"/>"#);
+    assert_error(
+        &xml,
+        "name=\"scale\"",
+        &["unknown parameter 'scale' (float) of <scene>"],
+    );
+    let xml = with_sensor(r#"<texture type="checkerboard"/>"#);
+    assert_error(
+        &xml,
+        "<texture",
+        &["<texture type=\"checkerboard\"> cannot be nested in <scene>"],
+    );
+    let xml = with_sensor(r#"<film type="hdrfilm"><rfilter type="box"/></film>"#);
+    assert_error(
+        &xml,
+        "<film type=\"hdrfilm\"><rfilter",
+        &["<film type=\"hdrfilm\"> cannot be nested in <scene>"],
+    );
+}
+
+#[test]
+fn whole_scene_defaults_are_mitsubas() {
+    // The smallest valid scene: only what penumbra requires.
+    let xml = scene(
+        r#"<sensor type="perspective">
+    <float name="fov" value="40"/>
+    <film type="hdrfilm"><rfilter type="box"/></film>
+</sensor>
+<shape type="sphere"/>"#,
+    );
+    let d = desc(&xml);
+    assert_eq!(d.integrator, PATH_DEFAULTS);
+    assert_eq!(d.sensor.fov_axis, FovAxis::X);
+    assert_eq!((d.sensor.near_clip, d.sensor.far_clip), (0.01, 1e4));
+    assert_eq!((d.sensor.film.width, d.sensor.film.height), (768, 576));
+    assert_eq!(
+        d.sensor.sampler,
+        SamplerDesc {
+            sample_count: 4,
+            seed: 0
+        }
+    );
+    assert_eq!(
+        d.shapes[0].kind,
+        ShapeKind::Sphere {
+            center: DVec3::ZERO,
+            radius: 1.0
+        }
+    );
+    assert_eq!(
+        d.shapes[0].bsdf,
+        BsdfDesc::Diffuse {
+            reflectance: DVec3::splat(0.5)
+        }
+    );
+}
+
+#[test]
+fn defines_reach_the_description() {
+    let xml = scene(
+        r#"<default name="res" value="16"/>
+<default name="spp" value="8"/>
+<sensor type="perspective">
+    <float name="fov" value="40"/>
+    <sampler type="independent"><integer name="sample_count" value="$spp"/></sampler>
+    <film type="hdrfilm">
+        <integer name="width" value="$res"/>
+        <integer name="height" value="$res"/>
+        <rfilter type="box"/>
+    </film>
+</sensor>"#,
+    );
+    let root = load_str(
+        &xml,
+        Path::new(FILE),
+        &[("spp".to_string(), "2".to_string())],
+    )
+    .unwrap();
+    let d = from_xml(&root).unwrap();
+    assert_eq!((d.sensor.film.width, d.sensor.film.height), (16, 16));
+    assert_eq!(d.sensor.sampler.sample_count, 2);
+    let root = load_str(
+        &xml,
+        Path::new(FILE),
+        &[("res".to_string(), "0".to_string())],
+    )
+    .unwrap();
+    let message = from_xml(&root).unwrap_err().to_string();
+    assert!(
+        message.contains("film width must be between 1 and 65536, got 0"),
+        "{message}"
+    );
+}
+
+// ---------------------------------------------------------------------------------------
+// Build-time checks
+// ---------------------------------------------------------------------------------------
+
+#[test]
+fn uniformly_scaled_sphere_builds() {
+    let d = desc(&with_sensor(
+        r#"<shape type="sphere">
+    <point name="center" value="1, 0, 0"/>
+    <float name="radius" value="2"/>
+    <transform name="to_world">
+        <scale value="3"/>
+        <rotate y="1" angle="90"/>
+        <translate value="0, 5, 0"/>
+    </transform>
+</shape>"#,
+    ));
+    let scene = build(&d).unwrap();
+    match &scene.shapes[0].geometry {
+        ShapeGeometry::Sphere(s) => {
+            assert!((s.radius - 6.0).abs() < 1e-12, "{}", s.radius);
+            // (1,0,0) scaled by 3, rotated 90° about +y to (0,0,-3), moved up by 5.
+            assert!(
+                s.center.abs_diff_eq(DVec3::new(0.0, 5.0, -3.0), 1e-12),
+                "{:?}",
+                s.center
+            );
+        }
+        _ => panic!("not a sphere"),
+    }
+}
+
+#[test]
+fn non_uniformly_scaled_sphere_fails_to_build() {
+    let xml = with_sensor(
+        r#"<shape type="sphere">
+    <transform name="to_world">
+        <scale value="1, 2, 1"/>
+    </transform>
+</shape>"#,
+    );
+    let d = desc(&xml);
+    let message = match build(&d) {
+        Ok(_) => panic!("a non-uniformly scaled sphere must not build"),
+        Err(e) => e.to_string(),
+    };
+    let location = format!("{FILE}:{}:", line_of(&xml, "<shape"));
+    assert!(message.starts_with(&location), "{message}");
+    assert!(
+        message.contains("sphere's to_world may only rotate, translate and scale uniformly"),
+        "{message}"
+    );
+}
+
+#[test]
+fn zero_scaled_shapes_fail_to_build() {
+    for plugin in ["rectangle", "cube", "disk", "sphere"] {
+        let xml = with_sensor(&format!(
+            r#"<shape type="{plugin}">
+    <transform name="to_world"><scale value="0"/></transform>
+</shape>"#
+        ));
+        let d = desc(&xml);
+        let message = match build(&d) {
+            Ok(_) => panic!("a zero-scaled {plugin} must not build"),
+            Err(e) => e.to_string(),
+        };
+        let location = format!("{FILE}:{}:", line_of(&xml, "<shape"));
+        assert!(message.starts_with(&location), "{plugin}: {message}");
+    }
+}
+
+#[test]
+fn build_warns_about_missing_emitters() {
+    let d = desc(&with_sensor(r#"<shape type="sphere"/>"#));
+    let scene = build(&d).unwrap();
+    assert_eq!(
+        scene.warnings,
+        ["the scene has no emitter: the image will be black"]
+    );
+    let d = desc(&with_sensor(
+        r#"<shape type="sphere"><emitter type="area"><rgb name="radiance" value="1"/></emitter></shape>"#,
+    ));
+    let scene = build(&d).unwrap();
+    assert!(scene.warnings.is_empty(), "{:?}", scene.warnings);
+    assert_eq!(scene.emitters.len(), 1);
+    assert_eq!((scene.width, scene.height), (32, 24));
+    assert_eq!((scene.sample_count, scene.seed), (4, 0));
+}
