@@ -57,8 +57,26 @@ impl Ray {
         self.o + self.d * t
     }
 
+    /// The ray in obvhs's form. Its `Ray::new` clamps direction components below f32::EPSILON
+    /// to ±1/EPSILON in the inverse, which turns the slab of an axis-parallel ray into a finite
+    /// interval and culls boxes the ray runs inside of (a ray along +y through a mesh vertex
+    /// slipped through). Here only components below 1e-30 are nudged to ±1e-30 (inverse ±1e30,
+    /// so slabs stay effectively infinite and 0 · ∞ never makes a NaN).
     pub(crate) fn to_obvhs(self) -> obvhs::ray::Ray {
-        obvhs::ray::Ray::new(Vec3A::from(self.o), Vec3A::from(self.d), 0.0, self.tmax)
+        let inv = |x: f32| {
+            1.0 / if x.abs() < 1e-30 {
+                1e-30f32.copysign(x)
+            } else {
+                x
+            }
+        };
+        obvhs::ray::Ray {
+            origin: Vec3A::from(self.o),
+            direction: Vec3A::from(self.d),
+            inv_direction: Vec3A::new(inv(self.d.x), inv(self.d.y), inv(self.d.z)),
+            tmin: 0.0,
+            tmax: self.tmax,
+        }
     }
 }
 

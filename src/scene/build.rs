@@ -17,12 +17,17 @@ use crate::shape::{Disk, Mesh, Shape, ShapeGeometry, Sphere};
 use glam::{DMat3, DMat4, DVec3, Vec2};
 use std::path::Path;
 
+/// Builds the scene in camera-relative coordinates: every transform is composed in f64 with
+/// a translation that puts the camera at the origin before anything is rounded to f32. A scene
+/// placed far from the world origin then keeps full f32 precision where it is seen, and renders
+/// the same image as the same scene near the origin.
 pub fn build(desc: &SceneDescription) -> Result<Scene> {
     let s = &desc.sensor;
+    let shift = DMat4::from_translation(-s.to_world.transform_point3(DVec3::ZERO));
     let (width, height) = (s.film.width as usize, s.film.height as usize);
     let aspect = width as f64 / height as f64;
     let camera = PerspectiveCamera::new(
-        s.to_world,
+        shift * s.to_world,
         fov_x_degrees(s.fov, s.fov_axis, aspect),
         aspect,
         s.near_clip,
@@ -33,7 +38,7 @@ pub fn build(desc: &SceneDescription) -> Result<Scene> {
     let mut bsdfs = Vec::new();
     let mut emitters = Vec::new();
     for sd in &desc.shapes {
-        let geometry = shape_geometry(sd, &mut warnings)?;
+        let geometry = shape_geometry(sd, shift, &mut warnings)?;
         let shape_index = shapes.len() as u32;
         bsdfs.push(bsdf(&sd.bsdf));
         let emitter = sd.emitter.as_ref().map(|e| {
@@ -127,8 +132,13 @@ fn quads(kind: &ShapeKind) -> Vec<[DVec3; 4]> {
     }
 }
 
-fn shape_geometry(sd: &ShapeDesc, warnings: &mut Vec<String>) -> Result<ShapeGeometry> {
-    let m = sd.to_world;
+/// `shift` maps world space to the camera-relative space the scene is built in.
+fn shape_geometry(
+    sd: &ShapeDesc,
+    shift: DMat4,
+    warnings: &mut Vec<String>,
+) -> Result<ShapeGeometry> {
+    let m = shift * sd.to_world;
     let degenerate = || {
         Error::scene(
             &sd.location,

@@ -75,12 +75,16 @@ impl Scene {
     }
 
     /// The shadow ray from `si` to the emitter point of `ds`: both ends are offset off their
-    /// surfaces, and the ray stops a relative [`SHADOW_EPSILON`] short of its end.
+    /// surfaces, and the ray stops a relative [`SHADOW_EPSILON`] short of its end. The
+    /// direction is normalised: the BVH's slab test clamps direction components below
+    /// f32::EPSILON, which would distort an unnormalised segment in a tiny scene.
     #[inline]
     pub fn shadow_ray(si: &SurfaceInteraction, ds: &DirectionSample) -> Ray {
         let from = offset_ray_origin(si.p, si.p_error, si.ng, ds.d);
         let to = offset_ray_origin(ds.p, ds.p_error, ds.n, -ds.d);
-        Ray::new(from, to - from, 1.0 - SHADOW_EPSILON)
+        let v = to - from;
+        let len = v.length();
+        Ray::new(from, v / len, len * (1.0 - SHADOW_EPSILON))
     }
 
     /// Probability of choosing emitter `i` for next-event estimation (uniform, as Mitsuba).
