@@ -226,15 +226,39 @@ pub fn load_obj(
     flip_normals: bool,
     warnings: &mut Vec<String>,
 ) -> Result<Mesh> {
-    let bytes = std::fs::read(path).map_err(|cause| Error::Io {
-        path: path.to_path_buf(),
-        cause,
-    })?;
+    let bytes =
+        crate::io::read_file_limited(path, crate::io::MAX_MESH_FILE_BYTES).map_err(|cause| {
+            Error::Io {
+                path: path.to_path_buf(),
+                cause,
+            }
+        })?;
+    obj_from_bytes(
+        &bytes,
+        path,
+        to_world,
+        face_normals,
+        flip_tex_coords,
+        flip_normals,
+        warnings,
+    )
+}
+
+/// [`load_obj`] on the file's contents; `path` names it in messages.
+pub fn obj_from_bytes(
+    bytes: &[u8],
+    path: &Path,
+    to_world: DMat4,
+    face_normals: bool,
+    flip_tex_coords: bool,
+    flip_normals: bool,
+    warnings: &mut Vec<String>,
+) -> Result<Mesh> {
     let mesh_err = |message: String| Error::Mesh {
         path: path.to_path_buf(),
         message,
     };
-    let mut reader = std::io::BufReader::new(bytes.as_slice());
+    let mut reader = std::io::BufReader::new(bytes);
     let (models, _) = tobj::load_obj_buf(&mut reader, &tobj::GPU_LOAD_OPTIONS, |_| {
         Err(tobj::LoadError::GenericFailure) // materials are not used: skip .mtl files
     })

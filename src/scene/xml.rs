@@ -151,10 +151,13 @@ pub struct Object {
 /// Errors: [`Error::Io`] if the file cannot be read, [`Error::Xml`] if it is not UTF-8 or not
 /// well-formed XML, [`Error::Scene`] for everything the scene says that is not accepted.
 pub fn load_file(path: &Path, overrides: &[(String, String)]) -> Result<Object> {
-    let text = std::fs::read(path).map_err(|cause| Error::Io {
-        path: path.to_path_buf(),
-        cause,
-    })?;
+    let text =
+        crate::io::read_file_limited(path, crate::io::MAX_SCENE_FILE_BYTES).map_err(|cause| {
+            Error::Io {
+                path: path.to_path_buf(),
+                cause,
+            }
+        })?;
     let text = decode_utf8(path, text)?;
     load_str(&text, path, overrides)
 }
@@ -1011,12 +1014,13 @@ impl Loader {
                 .collect();
             return Err(elem.error(format!("cyclic include: {}", chain.join(" -> "))));
         }
-        let bytes = std::fs::read(&path).map_err(|e| {
-            elem.error(format!(
-                "cannot read included file \"{}\": {e}",
-                path.display()
-            ))
-        })?;
+        let bytes =
+            crate::io::read_file_limited(&path, crate::io::MAX_SCENE_FILE_BYTES).map_err(|e| {
+                elem.error(format!(
+                    "cannot read included file \"{}\": {e}",
+                    path.display()
+                ))
+            })?;
         let text = decode_utf8(&path, bytes)?;
         let mut included = SourceFile::new(&path, &text);
         let doc = parse_document(&included)?;

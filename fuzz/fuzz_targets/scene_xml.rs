@@ -1,0 +1,28 @@
+//! Fuzzes the whole scene input path: XML parsing (includes, defaults, refs, transforms),
+//! the typed description, the scene build (meshes, BVH) and, for small films, a 1-spp render.
+//! Any panic, hang or unbounded allocation is a bug: every input must end in Ok or Err.
+#![no_main]
+
+use libfuzzer_sys::fuzz_target;
+use penumbra::render::{render, RenderSettings};
+use penumbra::scene::Scene;
+use std::path::Path;
+
+fuzz_target!(|data: &[u8]| {
+    let Ok(text) = std::str::from_utf8(data) else {
+        return;
+    };
+    let Ok(scene) = Scene::from_xml_str(text, Path::new("/tmp/penumbra-fuzz/scene.xml"), &[])
+    else {
+        return;
+    };
+    if scene.width * scene.height <= 256 {
+        let settings = RenderSettings {
+            spp: 1,
+            seed: 0,
+            threads: Some(1),
+            first_sample: 0,
+        };
+        let _ = render(&scene, &settings, &|_, _| {});
+    }
+});
