@@ -112,7 +112,10 @@ impl Accel {
         let bounded: Vec<Bounded> = prims.iter().map(|prim| Bounded { prim, shapes }).collect();
         let bvh = obvhs::bvh2::builder::build_bvh2(
             &bounded,
-            BvhBuildParams::medium_build(),
+            BvhBuildParams {
+                max_prims_per_leaf: 4,
+                ..BvhBuildParams::medium_build()
+            },
             &mut Duration::default(),
         );
         let ordered = bvh

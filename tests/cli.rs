@@ -471,7 +471,7 @@ fn io_error_messages_do_not_repeat_their_cause() {
     assert_eq!(
         line,
         format!(
-            "error: {}: Is a directory (os error 21)",
+            "error: {}: not a regular file",
             directory.display()
         )
     );

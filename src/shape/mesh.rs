@@ -18,6 +18,8 @@ pub struct Mesh {
     pub flip_normals: bool,
     /// Triangles by area, for uniform area sampling; `None` if the mesh has no area.
     area_distribution: Option<Distribution1D>,
+    /// Unit geometric normal per triangle (flipped if `flip_normals`), computed once.
+    face_normals: Vec<Vec3>,
 }
 
 impl Mesh {
@@ -36,7 +38,11 @@ impl Mesh {
             triangles,
             flip_normals,
             area_distribution: None,
+            face_normals: Vec::new(),
         };
+        mesh.face_normals = (0..mesh.triangles.len())
+            .map(|t| mesh.compute_face_normal(t))
+            .collect();
         mesh.area_distribution =
             Distribution1D::new((0..mesh.triangles.len()).map(|i| mesh.triangle_area(i)));
         mesh
@@ -63,22 +69,21 @@ impl Mesh {
             .map_or(0.0, Distribution1D::total)
     }
 
-    /// Geometric normal of a triangle: normalize((p1 − p0) × (p2 − p0)), Mitsuba's winding.
-    fn face_normal(&self, tri: usize) -> Vec3 {
-        let [p0, p1, p2] = self.vertices(tri);
-        let n = (p1 - p0).cross(p2 - p0);
-        let n = if n.length_squared() > 0.0 && n.is_finite() {
-            n.normalize()
-        } else {
-            // Tiny triangles can underflow in f32: fall back to f64.
-            let [a, b, c] = [p0, p1, p2].map(|p| p.as_dvec3());
-            (b - a).cross(c - a).normalize_or_zero().as_vec3()
-        };
+    /// Geometric normal of a triangle: normalize((p1 − p0) × (p2 − p0)), Mitsuba's winding,
+    /// computed in f64 (tiny triangles would underflow in f32).
+    fn compute_face_normal(&self, tri: usize) -> Vec3 {
+        let [a, b, c] = self.vertices(tri).map(|p| p.as_dvec3());
+        let n = (b - a).cross(c - a).normalize_or_zero().as_vec3();
         if self.flip_normals {
             -n
         } else {
             n
         }
+    }
+
+    #[inline]
+    fn face_normal(&self, tri: usize) -> Vec3 {
+        self.face_normals[tri]
     }
 
     /// Shading normal at barycentrics (b0, b1, b2), or the face normal.
@@ -157,17 +162,27 @@ fn barycentric_point(p: [Vec3; 3], b: [f32; 3], n: i32) -> (Vec3, Vec3) {
     (point, abs_sum * gamma(n))
 }
 
-/// Per-ray constants of the watertight test: the dominant axis and the shear that maps the
-/// ray direction onto +z.
+/// Per-ray constants of the watertight test: the dominant axis `kz` of the direction, the
+/// origin and direction cyclically permuted so that `kz` becomes z, and the shear that maps the
+/// direction onto +z. (The paper also swaps x and y when d_kz < 0 to keep the winding; both
+/// windings are accepted here, so the cyclic permutation alone suffices.)
 #[derive(Clone, Copy, Debug)]
 pub struct RayShear {
     o: Vec3,
-    kx: usize,
-    ky: usize,
     kz: usize,
     sx: f32,
     sy: f32,
     sz: f32,
+}
+
+/// Cyclic permutation taking axis `KZ` to z.
+#[inline(always)]
+fn permute<const KZ: usize>(v: Vec3) -> Vec3 {
+    match KZ {
+        0 => Vec3::new(v.y, v.z, v.x),
+        1 => Vec3::new(v.z, v.x, v.y),
+        _ => v,
+    }
 }
 
 impl RayShear {
@@ -180,19 +195,17 @@ impl RayShear {
         } else {
             2
         };
-        let mut kx = (kz + 1) % 3;
-        let mut ky = (kx + 1) % 3;
-        if d[kz] < 0.0 {
-            std::mem::swap(&mut kx, &mut ky);
-        }
+        let dp = match kz {
+            0 => permute::<0>(d),
+            1 => permute::<1>(d),
+            _ => d,
+        };
         RayShear {
             o,
-            kx,
-            ky,
             kz,
-            sx: d[kx] / d[kz],
-            sy: d[ky] / d[kz],
-            sz: 1.0 / d[kz],
+            sx: dp.x / dp.z,
+            sy: dp.y / dp.z,
+            sz: 1.0 / dp.z,
         }
     }
 }
@@ -201,12 +214,25 @@ impl RayShear {
 /// 0 < t < tmax, where t is conservatively positive.
 #[inline]
 pub fn intersect_triangle(r: &RayShear, p: &[Vec3; 3], tmax: f32) -> Option<(f32, f32, f32)> {
-    let a = p[0] - r.o;
-    let b = p[1] - r.o;
-    let c = p[2] - r.o;
-    let (ax, ay) = (a[r.kx] - r.sx * a[r.kz], a[r.ky] - r.sy * a[r.kz]);
-    let (bx, by) = (b[r.kx] - r.sx * b[r.kz], b[r.ky] - r.sy * b[r.kz]);
-    let (cx, cy) = (c[r.kx] - r.sx * c[r.kz], c[r.ky] - r.sy * c[r.kz]);
+    match r.kz {
+        0 => intersect_permuted::<0>(r, p, tmax),
+        1 => intersect_permuted::<1>(r, p, tmax),
+        _ => intersect_permuted::<2>(r, p, tmax),
+    }
+}
+
+#[inline(always)]
+fn intersect_permuted<const KZ: usize>(
+    r: &RayShear,
+    p: &[Vec3; 3],
+    tmax: f32,
+) -> Option<(f32, f32, f32)> {
+    let a = permute::<KZ>(p[0] - r.o);
+    let b = permute::<KZ>(p[1] - r.o);
+    let c = permute::<KZ>(p[2] - r.o);
+    let (ax, ay) = (a.x - r.sx * a.z, a.y - r.sy * a.z);
+    let (bx, by) = (b.x - r.sx * b.z, b.y - r.sy * b.z);
+    let (cx, cy) = (c.x - r.sx * c.z, c.y - r.sy * c.z);
     let mut e0 = cx * by - cy * bx;
     let mut e1 = ax * cy - ay * cx;
     let mut e2 = bx * ay - by * ax;
@@ -224,9 +250,9 @@ pub fn intersect_triangle(r: &RayShear, p: &[Vec3; 3], tmax: f32) -> Option<(f32
     if det == 0.0 || !det.is_finite() {
         return None;
     }
-    let az = r.sz * a[r.kz];
-    let bz = r.sz * b[r.kz];
-    let cz = r.sz * c[r.kz];
+    let az = r.sz * a.z;
+    let bz = r.sz * b.z;
+    let cz = r.sz * c.z;
     let t_scaled = e0 * az + e1 * bz + e2 * cz;
     if det < 0.0 && (t_scaled >= 0.0 || t_scaled < tmax * det) {
         return None;
@@ -244,7 +270,7 @@ pub fn intersect_triangle(r: &RayShear, p: &[Vec3; 3], tmax: f32) -> Option<(f32
     // pbrt bounds the sheared x, y errors by γ(5)(max|x'| + max|z'|); the shear term is
     // really |s_x| max|A_kz|, which is far smaller for grazing rays at a distance, where
     // pbrt's looser bound would reject genuine hits.
-    let max_kz = a[r.kz].abs().max(b[r.kz].abs()).max(c[r.kz].abs());
+    let max_kz = a.z.abs().max(b.z.abs()).max(c.z.abs());
     let delta_x = gamma(5) * (max_xt + 2.0 * r.sx.abs() * max_kz);
     let delta_y = gamma(5) * (max_yt + 2.0 * r.sy.abs() * max_kz);
     let delta_e = 2.0 * (gamma(2) * max_xt * max_yt + delta_y * max_xt + delta_x * max_yt);
