@@ -14,6 +14,7 @@ pub mod geometry;
 pub mod integrator;
 pub mod io;
 pub mod metrics;
+pub mod progressive;
 pub mod render;
 pub mod sampler;
 pub mod sampling;

@@ -470,10 +470,7 @@ fn io_error_messages_do_not_repeat_their_cause() {
     let line = assert_error(&out, &[]);
     assert_eq!(
         line,
-        format!(
-            "error: {}: not a regular file",
-            directory.display()
-        )
+        format!("error: {}: not a regular file", directory.display())
     );
     let scene = dir.write(
         "scene.xml",

@@ -40,9 +40,15 @@ pub struct Scene {
 impl Scene {
     /// Loads a Mitsuba XML file with `-D name=value` overrides and builds it.
     pub fn load(path: &Path, defines: &[(String, String)]) -> Result<Scene> {
-        let root = xml::load_file(path, defines)?;
-        let desc = description::from_xml(&root)?;
-        build::build(&desc)
+        build::build(&Self::load_description(path, defines)?)
+    }
+
+    /// The typed description of a Mitsuba XML file (what [`Scene::load`] builds).
+    pub fn load_description(
+        path: &Path,
+        defines: &[(String, String)],
+    ) -> Result<description::SceneDescription> {
+        description::from_xml(&xml::load_file(path, defines)?)
     }
 
     /// Builds a scene from XML text; `path` locates it for messages and relative files.
