@@ -31,7 +31,7 @@ fn killed_and_resumed_render_is_bit_identical_to_an_uninterrupted_one() {
     let dir = tmpdir("resume");
     let scene = repo_path("scenes/cornell-box.xml");
     let spp = "8192"; // 16x16 pixels: 8 passes of 1024 spp
-                       // Uninterrupted reference.
+                      // Uninterrupted reference.
     let whole = dir.join("whole.exr");
     let st = bin()
         .arg("render")
