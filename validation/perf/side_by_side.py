@@ -1,0 +1,139 @@
+#!/usr/bin/env python3
+"""Side-by-side efficiency of penumbra and Mitsuba 3.9.1 on the validation scenes.
+
+For every landed scene in validation/scenes.toml, renders the scene with penumbra (the
+release binary) and with Mitsuba (each requested variant; the scene is loaded once and
+rendered once untimed so that the llvm JIT is warm), all at the same spp, in one run on the
+same machine. For each render it measures the render time (scene loading excluded on both
+sides) and the MSE against the scene's reference, and reports the efficiency ratio
+
+    ratio = (t_mitsuba * MSE_mitsuba) / (t_penumbra * MSE_penumbra)
+
+(> 1: penumbra reaches a given error faster). Times and MSEs are medians over --repeat runs
+with distinct seeds.
+
+Usage:
+    cargo build --release
+    /work/venv/bin/python validation/perf/side_by_side.py [--spp 64] [--repeat 3]
+        [--scene NAME ...] [--variants llvm_ad_rgb,scalar_rgb] [--threads N] [--out FILE.md]
+"""
+
+import argparse
+import json
+import os
+import platform
+import statistics
+import subprocess
+import sys
+import tempfile
+import time
+import tomllib
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[2]
+LLVM = "/usr/lib/x86_64-linux-gnu/libLLVM.so.19.1"
+
+
+def load_exr(path):
+    import mitsuba as mi
+    import numpy as np
+
+    bmp = mi.Bitmap(str(path))
+    names = [bmp.struct_()[i].name for i in range(bmp.channel_count())]
+    arr = np.array(bmp, copy=False).reshape(bmp.height(), bmp.width(), -1)
+    return np.stack([arr[..., names.index(c)] for c in "RGB"], axis=-1).astype(np.float64)
+
+
+def mse(a, b):
+    import numpy as np
+
+    return float(np.mean((a - b) ** 2))
+
+
+def penumbra_run(scene, spp, seed, threads, tmp):
+    exe = ROOT / "target" / "release" / "penumbra"
+    out = Path(tmp) / "p.exr"
+    stats = Path(tmp) / "p.json"
+    cmd = [str(exe), "render", str(ROOT / scene["file"]), "--spp", str(spp), "--seed", str(seed),
+           "--quiet", "-o", str(out), "--stats", str(stats)]
+    for k, v in scene.get("defines", {}).items():
+        cmd += ["-D", f"{k}={v}"]
+    if threads:
+        cmd += ["--threads", str(threads)]
+    subprocess.run(cmd, check=True)
+    seconds = json.loads(stats.read_text())["seconds"]
+    return seconds, load_exr(out)
+
+
+def mitsuba_runs(scene, spp, seeds, variant):
+    import mitsuba as mi
+    import numpy as np
+
+    mi.set_variant(variant)
+    defines = dict(scene.get("defines", {}))
+    s = mi.load_file(str(ROOT / scene["file"]), **defines)
+    np.array(mi.render(s, spp=spp, seed=10_000))  # warm-up (JIT compile), untimed
+    results = []
+    for seed in seeds:
+        t0 = time.perf_counter()
+        img = np.array(mi.render(s, spp=spp, seed=seed))  # conversion forces evaluation
+        results.append((time.perf_counter() - t0, img[..., :3].astype(np.float64)))
+    return results
+
+
+def main():
+    ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    ap.add_argument("--spp", type=int, default=64)
+    ap.add_argument("--repeat", type=int, default=3)
+    ap.add_argument("--scene", action="append", help="only these scenes (repeatable)")
+    ap.add_argument("--variants", default="llvm_ad_rgb,scalar_rgb")
+    ap.add_argument("--threads", type=int, default=None, help="penumbra --threads")
+    ap.add_argument("--out", type=Path, help="also write the markdown table here")
+    args = ap.parse_args()
+    if os.path.exists(LLVM):
+        os.environ.setdefault("DRJIT_LIBLLVM_PATH", LLVM)
+
+    scenes = tomllib.loads((ROOT / "validation" / "scenes.toml").read_text())["scene"]
+    scenes = [s for s in scenes if s["status"] == "landed" and (not args.scene or s["name"] in args.scene)]
+    variants = [v for v in args.variants.split(",") if v]
+    seeds = list(range(1, args.repeat + 1))
+    rows = []
+    with tempfile.TemporaryDirectory() as tmp:
+        for sc in scenes:
+            ref = load_exr(ROOT / sc["reference"])
+            pen = [penumbra_run(sc, args.spp, s, args.threads, tmp) for s in seeds]
+            pt = statistics.median(t for t, _ in pen)
+            pm = statistics.median(mse(img, ref) for _, img in pen)
+            row = {"scene": sc["name"], "penumbra_s": pt, "penumbra_mse": pm}
+            for v in variants:
+                runs = mitsuba_runs(sc, args.spp, seeds, v)
+                mt = statistics.median(t for t, _ in runs)
+                mm = statistics.median(mse(img, ref) for _, img in runs)
+                row[v] = {"s": mt, "mse": mm, "ratio": (mt * mm) / (pt * pm)}
+            rows.append(row)
+            print(json.dumps(row), file=sys.stderr)
+
+    head = ["scene", "penumbra s", "penumbra MSE"]
+    for v in variants:
+        head += [f"{v} s", f"{v} MSE", f"ratio vs {v}"]
+    lines = [
+        f"Side-by-side at {args.spp} spp, medians of {args.repeat} seeds; "
+        f"machine: {platform.machine()}, {os.cpu_count()} cores; "
+        f"command: `python validation/perf/side_by_side.py --spp {args.spp} --repeat {args.repeat}`",
+        "",
+        "| " + " | ".join(head) + " |",
+        "|" + "---|" * len(head),
+    ]
+    for r in rows:
+        cells = [r["scene"], f"{r['penumbra_s']:.3f}", f"{r['penumbra_mse']:.3e}"]
+        for v in variants:
+            cells += [f"{r[v]['s']:.3f}", f"{r[v]['mse']:.3e}", f"{r[v]['ratio']:.2f}"]
+        lines.append("| " + " | ".join(cells) + " |")
+    table = "\n".join(lines)
+    print(table)
+    if args.out:
+        args.out.write_text(table + "\n")
+
+
+if __name__ == "__main__":
+    main()
