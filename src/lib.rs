@@ -7,6 +7,7 @@ pub mod accel;
 pub mod bsdf;
 pub mod camera;
 pub mod chi2;
+pub mod convergence;
 pub mod emitter;
 pub mod error;
 pub mod film;
@@ -14,12 +15,14 @@ pub mod geometry;
 pub mod integrator;
 pub mod io;
 pub mod metrics;
+pub mod plot;
 pub mod render;
 pub mod sampler;
 pub mod sampling;
 pub mod scene;
 pub mod shape;
 pub mod stats;
+pub mod validation;
 
 pub use error::{Error, Result};
 
