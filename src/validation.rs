@@ -515,7 +515,8 @@ pub fn report_markdown(
          channel (per-sample variances floored at 1e-4), two-sided, Šidák-corrected α = {ALPHA} \
          over all pixel-channels; passes when ≥ 99.75% pass.\n\
          2. **mean**: per channel, the image mean within {MEAN_SIGMAS} standard errors and \
-         within {}% of the reference's. The column shows the worst channel.\n\
+         within {}% of the reference's (se: standard error of the difference of the means). The \
+         column shows the worst channel.\n\
          3. **slope**: least-squares slope of ln RMSE vs. ln spp over the ladder \
          (1, 4, 16, ... spp, each step continuing the previous one's samples), −0.5 ± \
          {SLOPE_TOLERANCE}. The fit stops at the first step whose RMSE is within \
@@ -537,7 +538,7 @@ pub fn report_markdown(
         let Some(last) = st.last() else { continue };
         let _ = writeln!(
             s,
-            "| {} | {} | {:.2} | {:.3e} | {:.3e} | {:.3}% | {:.2}σ, {:.3}% | {} | {} |",
+            "| {} | {} | {:.2} | {:.3e} | {:.3e} | {:.3}% | {:.2} se, {:.3}% | {} | {} |",
             r.scene.name,
             last.spp,
             last.seconds,
@@ -619,8 +620,8 @@ fn write_scene_section(s: &mut String, r: &SceneResult, plots_dir: &str) {
     let stats = &st.ladder.stats;
     let _ = writeln!(
         s,
-        "- penumbra: scene load {:.3} s, {:.2} Mpath/s over the ladder, {} non-finite samples",
-        r.load_seconds,
+        "- penumbra: scene load {:.1} ms, {:.2} Mpath/s over the ladder, {} non-finite samples",
+        1e3 * r.load_seconds,
         stats.mpaths_per_second(),
         stats.nonfinite
     );
