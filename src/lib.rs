@@ -7,6 +7,7 @@ pub mod accel;
 pub mod bsdf;
 pub mod camera;
 pub mod chi2;
+pub mod convergence;
 pub mod emitter;
 pub mod error;
 pub mod film;
@@ -14,6 +15,7 @@ pub mod geometry;
 pub mod integrator;
 pub mod io;
 pub mod metrics;
+pub mod plot;
 pub mod progressive;
 pub mod render;
 pub mod sampler;
@@ -21,6 +23,7 @@ pub mod sampling;
 pub mod scene;
 pub mod shape;
 pub mod stats;
+pub mod validation;
 
 pub use error::{Error, Result};
 

@@ -32,12 +32,14 @@ Variance methods (``--variance``):
 
 Metadata goes to a JSON manifest (default: ``manifest.json`` next to this script), keyed by the
 output file name: scene, mitsuba_version, variant, spp, pass_spp, passes, width, height,
-render_seconds, date, defines (plus path, variance_method, seed_base, image_mean,
-variance_mean).
+render_seconds, date, defines (plus path, scene_sha256, variance_method, seed_base,
+image_mean, variance_mean). The EXR header also carries spp, mitsuba_version,
+mitsuba_variant, render_seconds, variance_method and seed_base, so the file describes itself.
 """
 
 import argparse
 import datetime
+import hashlib
 import json
 import os
 import sys
@@ -135,10 +137,16 @@ def render_passes(mi, scene, variant, method, sizes, seed_base, quiet):
     return mean, var, seconds
 
 
-def write_exr(mi, path, mean, var):
-    """Write R,G,B,variance.R,variance.G,variance.B as float32 in one EXR part."""
+def write_exr(mi, path, mean, var, metadata=None):
+    """Write R,G,B,variance.R,variance.G,variance.B as float32 in one EXR part.
+
+    ``metadata`` (name -> int, float or str) goes into the EXR header as attributes, so that a
+    reference file says how it was made (penumbra's validation reads ``spp`` from it)."""
     data = np.ascontiguousarray(np.concatenate([mean, var], axis=-1).astype(np.float32))
     bmp = mi.Bitmap(data, mi.Bitmap.PixelFormat.MultiChannel, CHANNELS)
+    header = bmp.metadata()
+    for name, value in (metadata or {}).items():
+        header[name] = value
     os.makedirs(os.path.dirname(os.path.abspath(path)) or ".", exist_ok=True)
     bmp.write(path)
     return data
@@ -155,6 +163,12 @@ def verify_exr(mi, path, data):
           and sorted(c for c, _ in hdr["channels"]) == sorted(CHANNELS)
           and all(t == 2 for _, t in hdr["channels"]))
     return ok, names, hdr
+
+
+def file_sha256(path):
+    """SHA-256 of a file's bytes (render_all.py compares it to decide what is up to date)."""
+    with open(path, "rb") as f:
+        return hashlib.sha256(f.read()).hexdigest()
 
 
 def update_manifest(path, key, entry):
@@ -195,7 +209,14 @@ def main(argv=None):
           f"{args.pass_spp}, variant {variant}, variance {method}", file=sys.stderr)
     mean, var, seconds = render_passes(mi, scene, variant, method, sizes, args.seed_base,
                                        args.quiet)
-    data = write_exr(mi, args.out, mean, var)
+    data = write_exr(mi, args.out, mean, var, {
+        "spp": args.spp,
+        "mitsuba_version": mi.__version__,
+        "mitsuba_variant": variant,
+        "render_seconds": float(seconds),
+        "variance_method": method,
+        "seed_base": args.seed_base,
+    })
     ok, names, hdr = verify_exr(mi, args.out, data)
     if not ok:
         raise SystemExit(f"EXR read-back check failed: channels {names}, header {hdr}")
@@ -205,6 +226,7 @@ def main(argv=None):
     entry = {
         "path": rel_to_repo(args.out),
         "scene": rel_to_repo(args.scene),
+        "scene_sha256": file_sha256(args.scene),
         "mitsuba_version": mi.__version__,
         "variant": variant,
         "spp": args.spp,

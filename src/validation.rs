@@ -1,0 +1,689 @@
+//! The validation study against Mitsuba 3.9.1: the scene list (`validation/scenes.toml`),
+//! the Mitsuba references (`validation/references/*.exr`, made by
+//! `validation/mitsuba/render_all.py`), the three checks and the markdown report.
+//!
+//! For a scene rendered along a ladder of sample counts (see [`crate::convergence`]), with
+//! the last step's image and per-sample variance:
+//!
+//! 1. **Bias, per pixel**: the z-test of Mitsuba's own render regression tests
+//!    ([`crate::metrics::z_test`]): z = |ours − ref| / √(var_ours/spp + var_ref/spp_ref) per
+//!    pixel and channel, two-sided, Šidák-corrected α = [`ALPHA`] over all pixel-channels;
+//!    passes when at least 99.75% of the pixel-channels pass.
+//! 2. **Bias, global**: per channel, the image mean within [`MEAN_SIGMAS`] standard errors of
+//!    the reference's (pixels are independent, so the standard error of a mean over N pixels
+//!    is √(Σ var_i/spp)/N, for both images) and within [`MEAN_REL_TOL`] of it.
+//! 3. **Convergence**: the least-squares slope of log RMSE against log spp over the steps
+//!    above the reference's noise floor is −1/2 ± [`SLOPE_TOLERANCE`]
+//!    ([`crate::convergence::fit_slope`]).
+
+use crate::convergence::{
+    fit_slope, reference_noise_floor, run_ladder, Ladder, LadderStep, SlopeFit, FLOOR_FACTOR,
+    MIN_FIT_STEPS,
+};
+use crate::error::{Error, Result};
+use crate::io::exr::{self, RgbImage};
+use crate::metrics::{channel_means, z_test, ZTest};
+use crate::scene::Scene;
+use serde::Deserialize;
+use std::collections::BTreeMap;
+use std::fmt::Write as _;
+use std::path::{Path, PathBuf};
+use std::time::Instant;
+
+/// The scene list, relative to the repository root.
+pub const SCENE_LIST: &str = "validation/scenes.toml";
+
+/// Family-wise significance level of the per-pixel z-test (Šidák over pixel-channels).
+pub const ALPHA: f64 = 0.01;
+
+/// Check 2: the image mean may differ from the reference's by this many standard errors...
+pub const MEAN_SIGMAS: f64 = 4.0;
+
+/// ... and by this fraction of the reference's mean.
+pub const MEAN_REL_TOL: f64 = 0.01;
+
+/// Check 3: the fitted slope must be within this of −1/2.
+pub const SLOPE_TOLERANCE: f64 = 0.1;
+
+/// Whether a scene's feature is in penumbra yet.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Status {
+    Landed,
+    Pending,
+}
+
+/// One `[[scene]]` of the scene list.
+#[derive(Clone, Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ValidationScene {
+    pub name: String,
+    /// Mitsuba XML, relative to the repository root.
+    pub file: PathBuf,
+    /// `$name` overrides, passed identically to Mitsuba and penumbra.
+    #[serde(default)]
+    pub defines: BTreeMap<String, String>,
+    pub feature: String,
+    pub status: Status,
+    /// For pending scenes: what is missing.
+    #[serde(default)]
+    pub why: Option<String>,
+    /// The Mitsuba reference EXR, relative to the repository root.
+    pub reference: PathBuf,
+    /// Samples per pixel of the reference.
+    pub reference_spp: u32,
+    /// Top of the tests' short ladder.
+    pub test_spp: u32,
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct SceneListFile {
+    scene: Vec<ValidationScene>,
+}
+
+/// Reads and checks the scene list at `root`/[`SCENE_LIST`]: unique names, a reason for
+/// every pending scene, positive sample counts.
+pub fn load_scene_list(root: &Path) -> Result<Vec<ValidationScene>> {
+    let path = root.join(SCENE_LIST);
+    let text = std::fs::read_to_string(&path).map_err(|cause| Error::Io {
+        path: path.clone(),
+        cause,
+    })?;
+    parse_scene_list(&text).map_err(|e| Error::Invalid(format!("{}: {e}", path.display())))
+}
+
+/// Parses scene-list TOML text (see [`load_scene_list`]); errors are plain messages.
+pub fn parse_scene_list(text: &str) -> std::result::Result<Vec<ValidationScene>, String> {
+    let list: SceneListFile = toml::from_str(text).map_err(|e| e.to_string())?;
+    let mut seen = std::collections::BTreeSet::new();
+    for s in &list.scene {
+        if !seen.insert(s.name.as_str()) {
+            return Err(format!("scene '{}' is listed twice", s.name));
+        }
+        if s.name.is_empty() || s.name.contains(['/', '\\']) {
+            return Err(format!("scene name '{}' must be a plain file stem", s.name));
+        }
+        if s.status == Status::Pending && s.why.as_deref().is_none_or(str::is_empty) {
+            return Err(format!("pending scene '{}' needs a `why`", s.name));
+        }
+        if s.reference_spp == 0 || s.test_spp == 0 {
+            return Err(format!(
+                "scene '{}': reference_spp and test_spp must be positive",
+                s.name
+            ));
+        }
+    }
+    Ok(list.scene)
+}
+
+/// A Mitsuba reference image with its per-sample variance.
+#[derive(Clone, Debug)]
+pub struct Reference {
+    pub image: RgbImage,
+    pub spp: u32,
+    pub mitsuba_version: Option<String>,
+    pub variant: Option<String>,
+    pub render_seconds: Option<f64>,
+}
+
+impl Reference {
+    /// Reads a reference EXR: R, G, B, variance.R/G/B and the `spp` header attribute that
+    /// render_reference.py writes.
+    pub fn read(path: &Path) -> Result<Reference> {
+        let image = exr::read(path)?;
+        let bad = |message: &str| Error::Image {
+            path: path.to_path_buf(),
+            message: message.to_string(),
+        };
+        if image.variance.is_none() {
+            return Err(bad("reference has no variance.R/G/B channels"));
+        }
+        let spp = image
+            .attributes
+            .get("spp")
+            .and_then(|s| s.trim().parse::<f64>().ok())
+            .filter(|v| *v >= 1.0 && v.fract() == 0.0 && *v <= u32::MAX as f64)
+            .ok_or_else(|| bad("reference has no positive integer `spp` header attribute"))?
+            as u32;
+        let attr = |k: &str| image.attributes.get(k).cloned();
+        Ok(Reference {
+            spp,
+            mitsuba_version: attr("mitsuba_version"),
+            variant: attr("mitsuba_variant"),
+            render_seconds: attr("render_seconds").and_then(|s| s.parse().ok()),
+            image,
+        })
+    }
+
+    pub fn variance(&self) -> &[[f32; 3]] {
+        self.image.variance.as_deref().unwrap_or(&[])
+    }
+
+    /// See [`reference_noise_floor`].
+    pub fn noise_floor(&self) -> f64 {
+        reference_noise_floor(self.variance(), self.spp as f64)
+    }
+}
+
+impl ValidationScene {
+    pub fn is_landed(&self) -> bool {
+        self.status == Status::Landed
+    }
+
+    pub fn defines_vec(&self) -> Vec<(String, String)> {
+        self.defines
+            .iter()
+            .map(|(k, v)| (k.clone(), v.clone()))
+            .collect()
+    }
+
+    /// `-D name=value ...` as both command lines take them.
+    pub fn defines_args(&self) -> String {
+        self.defines
+            .iter()
+            .map(|(k, v)| format!("-D {k}={v}"))
+            .collect::<Vec<_>>()
+            .join(" ")
+    }
+
+    pub fn load_scene(&self, root: &Path) -> Result<Scene> {
+        Scene::load(&root.join(&self.file), &self.defines_vec())
+    }
+
+    /// Reads the reference and checks that it is the one the list asks for.
+    pub fn load_reference(&self, root: &Path) -> Result<Reference> {
+        let path = root.join(&self.reference);
+        let r = Reference::read(&path)?;
+        if r.spp != self.reference_spp {
+            return Err(Error::Image {
+                path,
+                message: format!(
+                    "reference has {} spp, {} asks for {}: re-render it with \
+                     validation/mitsuba/render_all.py",
+                    r.spp, SCENE_LIST, self.reference_spp
+                ),
+            });
+        }
+        Ok(r)
+    }
+}
+
+/// Check 2 for one channel.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct ChannelMean {
+    pub ours: f64,
+    pub reference: f64,
+    /// Standard error of `ours − reference`.
+    pub se: f64,
+}
+
+impl ChannelMean {
+    pub fn diff(&self) -> f64 {
+        self.ours - self.reference
+    }
+
+    /// |difference| in standard errors.
+    pub fn sigmas(&self) -> f64 {
+        self.diff().abs() / self.se
+    }
+
+    /// |difference| relative to the reference (infinite for a black reference channel that
+    /// we do not match exactly).
+    pub fn relative(&self) -> f64 {
+        let d = self.diff().abs();
+        if d == 0.0 {
+            0.0
+        } else {
+            d / self.reference.abs()
+        }
+    }
+
+    pub fn passed(&self) -> bool {
+        let d = self.diff().abs();
+        d <= MEAN_SIGMAS * self.se && d <= MEAN_REL_TOL * self.reference.abs()
+    }
+}
+
+/// Check 2: per-channel image means.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct MeanCheck {
+    pub channels: [ChannelMean; 3],
+}
+
+impl MeanCheck {
+    pub fn passed(&self) -> bool {
+        self.channels.iter().all(ChannelMean::passed)
+    }
+
+    pub fn max_sigmas(&self) -> f64 {
+        self.channels.iter().map(|c| c.sigmas()).fold(0.0, f64::max)
+    }
+
+    pub fn max_relative(&self) -> f64 {
+        self.channels
+            .iter()
+            .map(|c| c.relative())
+            .fold(0.0, f64::max)
+    }
+}
+
+/// Check 2 on an image with its per-sample variance at `spp`, against `reference`.
+pub fn mean_check(
+    rgb: &[[f32; 3]],
+    variance: &[[f32; 3]],
+    spp: f64,
+    reference: &Reference,
+) -> MeanCheck {
+    let (m_ours, m_ref) = (channel_means(rgb), channel_means(&reference.image.rgb));
+    let n = rgb.len().max(1) as f64;
+    let var_of_mean = |v: &[[f32; 3]], spp: f64, c: usize| {
+        v.iter().map(|p| p[c] as f64).sum::<f64>() / spp / (n * n)
+    };
+    let channels = std::array::from_fn(|c| ChannelMean {
+        ours: m_ours[c],
+        reference: m_ref[c],
+        se: (var_of_mean(variance, spp, c)
+            + var_of_mean(reference.variance(), reference.spp as f64, c))
+        .sqrt(),
+    });
+    MeanCheck { channels }
+}
+
+/// Check 1 on an image with its per-sample variance at `spp`, against `reference`.
+pub fn pixel_z_test(
+    rgb: &[[f32; 3]],
+    variance: &[[f32; 3]],
+    spp: f64,
+    reference: &Reference,
+) -> Result<ZTest> {
+    let r = &reference.image;
+    if rgb.len() != r.rgb.len() || variance.len() != rgb.len() {
+        return Err(Error::Invalid(format!(
+            "image has {} pixels, the reference {}",
+            rgb.len(),
+            r.rgb.len()
+        )));
+    }
+    let ours = RgbImage {
+        width: r.width,
+        height: r.height,
+        rgb: rgb.to_vec(),
+        variance: Some(variance.to_vec()),
+        attributes: BTreeMap::new(),
+    };
+    z_test(&ours, spp, r, reference.spp as f64, ALPHA)
+        .ok_or_else(|| Error::Invalid("z-test needs both variances".into()))
+}
+
+/// Everything measured for one scene.
+#[derive(Clone, Debug)]
+pub struct StudyResult {
+    pub ladder: Ladder,
+    /// Check 1, on the last step's image.
+    pub z: ZTest,
+    /// Check 2, on the last step's image.
+    pub mean: MeanCheck,
+    /// Check 3.
+    pub slope: SlopeFit,
+}
+
+impl StudyResult {
+    pub fn last(&self) -> Option<&LadderStep> {
+        self.ladder.steps.last()
+    }
+
+    /// The checks that failed, each with its numbers; empty when all pass.
+    pub fn failures(&self) -> Vec<String> {
+        let mut f = Vec::new();
+        if !self.z.passed() {
+            f.push(format!(
+                "check 1 (per-pixel z-test): {} of {} pixel-channels have |z| > {:.2} \
+                 (pass rate {:.4}%, need >= 99.75%); max |z| {:.2}",
+                self.z.failures,
+                self.z.tests,
+                self.z.z_critical,
+                100.0 * self.z.pass_rate(),
+                self.z.z_max
+            ));
+        }
+        for (c, m) in ["R", "G", "B"].iter().zip(&self.mean.channels) {
+            if !m.passed() {
+                f.push(format!(
+                    "check 2 (image mean), channel {c}: {:.6} vs reference {:.6}: \
+                     {:.2} standard errors (max {MEAN_SIGMAS}), {:.3}% (max {}%)",
+                    m.ours,
+                    m.reference,
+                    m.sigmas(),
+                    100.0 * m.relative(),
+                    100.0 * MEAN_REL_TOL
+                ));
+            }
+        }
+        if !self.slope.passed(SLOPE_TOLERANCE) {
+            f.push(match self.slope.slope() {
+                Some(s) if self.slope.used >= MIN_FIT_STEPS => format!(
+                    "check 3 (convergence): slope {s:.3} over {} steps, not within \
+                     {SLOPE_TOLERANCE} of -0.5",
+                    self.slope.used
+                ),
+                _ => format!(
+                    "check 3 (convergence): only {} of {} steps above {FLOOR_FACTOR}x the \
+                     reference's noise floor {:.3e}; need {MIN_FIT_STEPS}",
+                    self.slope.used, self.slope.total, self.slope.floor
+                ),
+            });
+        }
+        f
+    }
+
+    pub fn passed(&self) -> bool {
+        self.failures().is_empty()
+    }
+}
+
+/// Runs the ladder `steps` on `scene` and the three checks against `reference`.
+pub fn study(
+    scene: &Scene,
+    reference: &Reference,
+    steps: &[u32],
+    seed: u64,
+    threads: Option<usize>,
+    on_step: &mut dyn FnMut(&LadderStep),
+) -> Result<StudyResult> {
+    if (scene.width, scene.height) != (reference.image.width, reference.image.height) {
+        return Err(Error::Invalid(format!(
+            "scene renders {}x{}, the reference is {}x{}",
+            scene.width, scene.height, reference.image.width, reference.image.height
+        )));
+    }
+    let ladder = run_ladder(scene, steps, seed, threads, &reference.image.rgb, on_step)?;
+    let spp = steps.last().copied().unwrap_or(1) as f64;
+    let (rgb, var) = (ladder.film.image(), ladder.film.sample_variance());
+    let z = pixel_z_test(&rgb, &var, spp, reference)?;
+    let mean = mean_check(&rgb, &var, spp, reference);
+    let slope = fit_slope(&ladder.rmse_points(), reference.noise_floor(), FLOOR_FACTOR);
+    Ok(StudyResult {
+        ladder,
+        z,
+        mean,
+        slope,
+    })
+}
+
+/// A scene of the list, validated.
+#[derive(Clone, Debug)]
+pub struct SceneResult {
+    pub scene: ValidationScene,
+    pub reference: Reference,
+    /// Scene loading and building, in seconds.
+    pub load_seconds: f64,
+    pub study: StudyResult,
+}
+
+/// Loads `entry`'s scene and reference from `root` and runs [`study`] up to `max_spp`.
+pub fn validate_scene(
+    root: &Path,
+    entry: &ValidationScene,
+    steps: &[u32],
+    seed: u64,
+    threads: Option<usize>,
+    on_step: &mut dyn FnMut(&LadderStep),
+) -> Result<SceneResult> {
+    let t = Instant::now();
+    let scene = entry.load_scene(root)?;
+    let load_seconds = t.elapsed().as_secs_f64();
+    let reference = entry.load_reference(root)?;
+    let study = study(&scene, &reference, steps, seed, threads, on_step)?;
+    Ok(SceneResult {
+        scene: entry.clone(),
+        reference,
+        load_seconds,
+        study,
+    })
+}
+
+/// What the report says about how it was made.
+#[derive(Clone, Debug, Default)]
+pub struct ReportContext {
+    pub command: String,
+    /// UTC date and time.
+    pub date: String,
+    pub machine: String,
+    pub penumbra_version: String,
+    pub git_commit: Option<String>,
+    pub seed: u64,
+    /// Wall time of the whole study, in seconds.
+    pub total_seconds: f64,
+    /// Where the plots are, relative to the report's directory (`plots` in the repository).
+    pub plots_dir: String,
+}
+
+fn status_cell(r: &StudyResult) -> String {
+    let mut failed = Vec::new();
+    if !r.z.passed() {
+        failed.push("z-test");
+    }
+    if !r.mean.passed() {
+        failed.push("mean");
+    }
+    if !r.slope.passed(SLOPE_TOLERANCE) {
+        failed.push("slope");
+    }
+    if failed.is_empty() {
+        "pass".into()
+    } else {
+        format!("**FAIL** ({})", failed.join(", "))
+    }
+}
+
+fn slope_cell(s: &SlopeFit) -> String {
+    match s.slope() {
+        Some(v) => format!("{v:.3} ({}/{} steps)", s.used, s.total),
+        None => format!("n/a ({}/{} steps)", s.used, s.total),
+    }
+}
+
+/// The markdown report: a summary table over `results`, the pending scenes of `scenes`, and
+/// per scene its reference, ladder, checks and plot (`<plots_dir>/<name>.png`).
+pub fn report_markdown(
+    results: &[SceneResult],
+    scenes: &[ValidationScene],
+    ctx: &ReportContext,
+) -> String {
+    let mut s = String::new();
+    let _ = writeln!(s, "# penumbra vs. Mitsuba 3.9.1: validation report\n");
+    let _ = writeln!(
+        s,
+        "Generated by `{}` on {} (UTC), {}; penumbra {}{}; seed {}; study wall time {:.1} s. \
+         Do not edit by hand: rerun the command.\n",
+        ctx.command,
+        ctx.date,
+        ctx.machine,
+        ctx.penumbra_version,
+        ctx.git_commit
+            .as_deref()
+            .map(|c| format!(" (commit {c})"))
+            .unwrap_or_default(),
+        ctx.seed,
+        ctx.total_seconds
+    );
+    let _ = writeln!(
+        s,
+        "Checks, on the last (highest-spp) image of each ladder, against the Mitsuba reference:\n\n\
+         1. **z-test**: z = \\|ours − ref\\| / √(var_ours/spp + var_ref/spp_ref) per pixel and \
+         channel (per-sample variances floored at 1e-4), two-sided, Šidák-corrected α = {ALPHA} \
+         over all pixel-channels; passes when ≥ 99.75% pass.\n\
+         2. **mean**: per channel, the image mean within {MEAN_SIGMAS} standard errors and \
+         within {}% of the reference's (se: standard error of the difference of the means). The \
+         column shows the worst channel.\n\
+         3. **slope**: least-squares slope of ln RMSE vs. ln spp over the ladder \
+         (1, 4, 16, ... spp, each step continuing the previous one's samples), −0.5 ± \
+         {SLOPE_TOLERANCE}. The fit stops at the first step whose RMSE is within \
+         {FLOOR_FACTOR}× the reference's noise floor √(mean(var_ref)/spp_ref) (the RMSE a \
+         perfect image would show); at least {MIN_FIT_STEPS} steps are needed.\n\n\
+         RMSE and relative MSE (mean of (ours − ref)² / (ref² + 0.01)) are over all \
+         pixel-channels. Times are penumbra's sampling wall time (scene loading excluded) on \
+         a machine shared with other jobs.\n",
+        100.0 * MEAN_REL_TOL
+    );
+    let _ = writeln!(s, "## Summary\n");
+    let _ = writeln!(
+        s,
+        "| scene | spp | time (s) | RMSE | rel. MSE | z-test pass | mean Δ (worst channel) | slope | status |"
+    );
+    let _ = writeln!(s, "|---|---:|---:|---:|---:|---:|---:|---:|---|");
+    for r in results {
+        let st = &r.study;
+        let Some(last) = st.last() else { continue };
+        let _ = writeln!(
+            s,
+            "| {} | {} | {:.2} | {:.3e} | {:.3e} | {:.3}% | {:.2} se, {:.3}% | {} | {} |",
+            r.scene.name,
+            last.spp,
+            last.seconds,
+            last.metrics.rmse,
+            last.metrics.rel_mse,
+            100.0 * st.z.pass_rate(),
+            st.mean.max_sigmas(),
+            100.0 * st.mean.max_relative(),
+            slope_cell(&st.slope),
+            status_cell(st)
+        );
+    }
+    let pending: Vec<_> = scenes.iter().filter(|s| !s.is_landed()).collect();
+    if !pending.is_empty() {
+        let _ = writeln!(s, "\n## Pending scenes\n");
+        let _ = writeln!(
+            s,
+            "Listed in `{SCENE_LIST}`, not validated until their feature lands.\n"
+        );
+        let _ = writeln!(s, "| scene | feature | why pending |");
+        let _ = writeln!(s, "|---|---|---|");
+        for p in pending {
+            let _ = writeln!(
+                s,
+                "| {} | {} | {} |",
+                p.name,
+                p.feature,
+                p.why.as_deref().unwrap_or("")
+            );
+        }
+    }
+    for r in results {
+        write_scene_section(&mut s, r, &ctx.plots_dir);
+    }
+    s
+}
+
+fn write_scene_section(s: &mut String, r: &SceneResult, plots_dir: &str) {
+    let e = &r.scene;
+    let st = &r.study;
+    let refr = &r.reference;
+    let _ = writeln!(s, "\n## {}\n", e.name);
+    let _ = writeln!(s, "{}.\n", e.feature);
+    let defines = e.defines_args();
+    let _ = writeln!(
+        s,
+        "- scene: `{}`{}",
+        e.file.display(),
+        if defines.is_empty() {
+            String::new()
+        } else {
+            format!(" with `{defines}`")
+        }
+    );
+    let (w, h) = (refr.image.width, refr.image.height);
+    let mitsuba_rate = refr
+        .render_seconds
+        .map(|t| {
+            format!(
+                ", {:.2} Mpath/s",
+                (w * h) as f64 * refr.spp as f64 / t / 1e6
+            )
+        })
+        .unwrap_or_default();
+    let _ = writeln!(
+        s,
+        "- reference: `{}`, {}x{}, {} spp, Mitsuba {} `{}`{}{}",
+        e.reference.display(),
+        w,
+        h,
+        refr.spp,
+        refr.mitsuba_version.as_deref().unwrap_or("?"),
+        refr.variant.as_deref().unwrap_or("?"),
+        refr.render_seconds
+            .map(|t| format!(", {t:.1} s"))
+            .unwrap_or_default(),
+        mitsuba_rate
+    );
+    let stats = &st.ladder.stats;
+    let _ = writeln!(
+        s,
+        "- penumbra: scene load {:.1} ms, {:.2} Mpath/s over the ladder, {} non-finite samples",
+        1e3 * r.load_seconds,
+        stats.mpaths_per_second(),
+        stats.nonfinite
+    );
+    let _ = writeln!(
+        s,
+        "- mean per-sample variance over pixel-channels: penumbra {:.4e}, Mitsuba {:.4e}; \
+         reference noise floor \
+         √(mean(var_ref)/spp_ref) = {:.3e}\n",
+        st.ladder.mean_sample_variance(),
+        crate::convergence::mean_of(refr.variance()),
+        st.slope.floor
+    );
+    let _ = writeln!(
+        s,
+        "| spp | time (s) | RMSE | rel. MSE | RMSE / floor | in fit |"
+    );
+    let _ = writeln!(s, "|---:|---:|---:|---:|---:|---|");
+    for (i, step) in st.ladder.steps.iter().enumerate() {
+        let _ = writeln!(
+            s,
+            "| {} | {:.3} | {:.4e} | {:.4e} | {:.1} | {} |",
+            step.spp,
+            step.seconds,
+            step.metrics.rmse,
+            step.metrics.rel_mse,
+            step.metrics.rmse / st.slope.floor,
+            if i < st.slope.used { "yes" } else { "no" }
+        );
+    }
+    let _ = writeln!(
+        s,
+        "\nz-test: {} of {} pixel-channels above |z| = {:.3} (pass rate {:.4}%), max |z| {:.2}.\n",
+        st.z.failures,
+        st.z.tests,
+        st.z.z_critical,
+        100.0 * st.z.pass_rate(),
+        st.z.z_max
+    );
+    let _ = writeln!(
+        s,
+        "| channel | penumbra mean | Mitsuba mean | Δ | Δ / se | Δ / ref |"
+    );
+    let _ = writeln!(s, "|---|---:|---:|---:|---:|---:|");
+    for (c, m) in ["R", "G", "B"].iter().zip(&st.mean.channels) {
+        let _ = writeln!(
+            s,
+            "| {c} | {:.6} | {:.6} | {:+.2e} | {:.2} | {:.4}% |",
+            m.ours,
+            m.reference,
+            m.diff(),
+            m.sigmas(),
+            100.0 * m.relative()
+        );
+    }
+    let failures = st.failures();
+    if failures.is_empty() {
+        let _ = writeln!(s, "\nAll checks pass.");
+    } else {
+        let _ = writeln!(s);
+        for f in failures {
+            let _ = writeln!(s, "- **{f}**");
+        }
+    }
+    let _ = writeln!(s, "\n![{0} convergence]({plots_dir}/{0}.png)", e.name);
+}

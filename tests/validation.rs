@@ -1,0 +1,263 @@
+//! The fast subset of the validation study (`cargo run --release --bin validate` runs the
+//! full one): every landed scene of validation/scenes.toml against its Mitsuba 3.9.1
+//! reference, on a short ladder (1, 4, ... test_spp spp): the per-pixel z-test and the image
+//! mean on the last image, and the convergence slope over the ladder. New scenes are
+//! picked up when they are flipped to "landed" in the list.
+//!
+//! Also: the checks reject a wrong reference (so they can fail), and the slope fit and the
+//! noise-floor rule on synthetic data with known answers.
+
+mod common;
+use common::repo_path;
+use penumbra::convergence::{
+    fit_log_log, fit_slope, reference_noise_floor, spp_ladder, FLOOR_FACTOR, MIN_FIT_STEPS,
+};
+use penumbra::validation::{
+    load_scene_list, mean_check, parse_scene_list, study, validate_scene, Reference, Status,
+    SLOPE_TOLERANCE,
+};
+use rand::{RngExt, SeedableRng};
+use rand_pcg::Pcg64;
+
+/// Seed of penumbra's renders in these tests (fixed: the tests are deterministic).
+const SEED: u64 = 0x7e57;
+
+#[test]
+fn landed_scenes_match_mitsuba() {
+    let root = repo_path("");
+    let list = load_scene_list(&root).expect("scene list");
+    let landed: Vec<_> = list.iter().filter(|s| s.is_landed()).collect();
+    assert!(!landed.is_empty(), "no landed scene in the list");
+    let mut failures = Vec::new();
+    for entry in landed {
+        let steps = spp_ladder(entry.test_spp);
+        let r = validate_scene(&root, entry, &steps, SEED, None, &mut |_| {})
+            .unwrap_or_else(|e| panic!("{}: {e}", entry.name));
+        let last = r.study.last().expect("steps");
+        eprintln!(
+            "{}: {} spp, {:.2} s, RMSE {:.3e}, z-test pass {:.3}% (max |z| {:.2}), mean worst \
+             {:.2} se / {:.3}%, slope {:?} over {} steps (floor {:.2e})",
+            entry.name,
+            last.spp,
+            last.seconds,
+            last.metrics.rmse,
+            100.0 * r.study.z.pass_rate(),
+            r.study.z.z_max,
+            r.study.mean.max_sigmas(),
+            100.0 * r.study.mean.max_relative(),
+            r.study.slope.slope(),
+            r.study.slope.used,
+            r.study.slope.floor
+        );
+        assert_eq!(r.study.ladder.stats.nonfinite, 0, "{}", entry.name);
+        failures.extend(
+            r.study
+                .failures()
+                .into_iter()
+                .map(|f| format!("{}: {f}", entry.name)),
+        );
+    }
+    assert!(failures.is_empty(), "{failures:#?}");
+}
+
+/// The Cornell box (max_depth 8) compared with the max_depth 2 reference: the missing
+/// interreflection must fail every check. Guards against checks that cannot fail.
+#[test]
+fn checks_reject_the_wrong_reference() {
+    let root = repo_path("");
+    let list = load_scene_list(&root).expect("scene list");
+    let get = |name: &str| list.iter().find(|s| s.name == name).expect(name);
+    let (full, direct) = (get("cornell-box"), get("cornell-depth2"));
+    let scene = full.load_scene(&root).expect("scene");
+    let wrong = direct.load_reference(&root).expect("reference");
+    let r = study(&scene, &wrong, &spp_ladder(64), SEED, None, &mut |_| {}).expect("study");
+    assert!(!r.z.passed(), "z-test passed: {:?}", r.z);
+    assert!(!r.mean.passed(), "mean passed: {:?}", r.mean);
+    // The indirect light is missing, a bias far above the noise: the error stops falling.
+    let s = r.slope.slope().expect("slope");
+    assert!(s > -0.5 + SLOPE_TOLERANCE, "slope {s}");
+    assert!(!r.slope.passed(SLOPE_TOLERANCE));
+}
+
+#[test]
+fn scene_list_is_consistent() {
+    let root = repo_path("");
+    let list = load_scene_list(&root).expect("scene list");
+    for s in &list {
+        if s.status == Status::Landed {
+            assert!(root.join(&s.file).is_file(), "{}: no {:?}", s.name, s.file);
+            assert!(
+                root.join(&s.reference).is_file(),
+                "{}: no reference {:?}: run validation/mitsuba/render_all.py",
+                s.name,
+                s.reference
+            );
+            assert!(
+                spp_ladder(s.test_spp).len() >= MIN_FIT_STEPS,
+                "{}: test_spp {} gives fewer than {MIN_FIT_STEPS} ladder steps",
+                s.name,
+                s.test_spp
+            );
+        }
+    }
+    // The parser refuses what would make the list ambiguous.
+    let entry = |name: &str, extra: &str| {
+        format!(
+            "[[scene]]\nname = \"{name}\"\nfile = \"a.xml\"\nfeature = \"f\"\n\
+             reference = \"r.exr\"\nreference_spp = 4\ntest_spp = 4\n{extra}\n"
+        )
+    };
+    assert!(parse_scene_list(&entry("a", "status = \"landed\"")).is_ok());
+    let twice = entry("a", "status = \"landed\"") + &entry("a", "status = \"landed\"");
+    assert!(parse_scene_list(&twice).unwrap_err().contains("twice"));
+    assert!(parse_scene_list(&entry("a", "status = \"pending\""))
+        .unwrap_err()
+        .contains("why"));
+    assert!(parse_scene_list(&entry("a", "status = \"done\"")).is_err());
+    assert!(parse_scene_list(&entry("a", "status = \"landed\"\ncolour = 1")).is_err());
+}
+
+#[test]
+fn spp_ladder_steps() {
+    assert_eq!(spp_ladder(1024), [1, 4, 16, 64, 256, 1024]);
+    assert_eq!(spp_ladder(100), [1, 4, 16, 64, 100]);
+    assert_eq!(spp_ladder(1), [1]);
+    assert!(spp_ladder(0).is_empty());
+    assert_eq!(spp_ladder(u32::MAX).len(), 17);
+}
+
+#[test]
+fn slope_fit_on_exact_power_laws() {
+    for (a, k) in [(3.0, -0.5), (0.02, -0.5), (1.0, -1.0), (5.0, 0.0)] {
+        let pts: Vec<(f64, f64)> = (0..8)
+            .map(|i| 4f64.powi(i))
+            .map(|x| (x, a * x.powf(k)))
+            .collect();
+        let l = fit_log_log(&pts).expect("fit");
+        assert!((l.slope - k).abs() < 1e-12, "{l:?}");
+        assert!((l.eval(1.0) - a).abs() < 1e-12 * a.max(1.0), "{l:?}");
+    }
+    assert!(fit_log_log(&[(1.0, 1.0)]).is_none());
+    assert!(fit_log_log(&[(2.0, 1.0), (2.0, 3.0)]).is_none());
+    assert!(fit_log_log(&[(1.0, 1.0), (4.0, 0.0)]).is_none());
+}
+
+/// The floor rule on the expected curve RMSE² = σ²/n + floor²: the fit keeps exactly the
+/// leading steps above 3·floor, and over them the slope stays within 0.03 of −1/2 (where
+/// RMSE = 3·floor, σ²/n = 8·floor² and the floor raises the RMSE by √(9/8): 6%).
+#[test]
+fn floor_rule_on_the_expected_curve() {
+    let sigma2 = 0.07f64;
+    let floor = (sigma2 / 1024.0).sqrt(); // a 1024-spp reference of the same variance
+    let pts: Vec<(f64, f64)> = spp_ladder(65536)
+        .into_iter()
+        .map(|n| (n as f64, (sigma2 / n as f64 + floor * floor).sqrt()))
+        .collect();
+    let fit = fit_slope(&pts, floor, FLOOR_FACTOR);
+    // RMSE > 3 floor  <=>  1024/n + 1 > 9  <=>  n < 128: steps 1, 4, 16, 64.
+    assert_eq!(fit.used, 4);
+    assert_eq!(fit.total, 9);
+    let s = fit.slope().expect("slope");
+    assert!((s + 0.5).abs() < 0.03, "slope {s}");
+    assert!(fit.passed(SLOPE_TOLERANCE));
+    // All steps, floor ignored: the plateau drags the slope far from −1/2.
+    let all = fit_slope(&pts, 0.0, FLOOR_FACTOR);
+    assert_eq!(all.used, 9);
+    assert!(!all.passed(SLOPE_TOLERANCE), "{:?}", all.slope());
+    // Too few steps above the floor: no verdict of success.
+    let short = fit_slope(&pts[..2], floor, FLOOR_FACTOR);
+    assert_eq!(short.used, 2);
+    assert!(!short.passed(SLOPE_TOLERANCE));
+    // A bias as large as the noise at 64 spp flattens the curve: slope fails.
+    let bias = (sigma2 / 64.0).sqrt();
+    let biased: Vec<(f64, f64)> = pts
+        .iter()
+        .map(|&(n, r)| (n, (r * r + bias * bias).sqrt()))
+        .collect();
+    let fb = fit_slope(&biased, floor, FLOOR_FACTOR);
+    assert_eq!(fb.used, 9);
+    assert!(!fb.passed(SLOPE_TOLERANCE), "{:?}", fb.slope());
+}
+
+fn normal(rng: &mut Pcg64) -> f64 {
+    // Box-Muller
+    let u1: f64 = 1.0 - rng.random::<f64>();
+    let u2: f64 = rng.random::<f64>();
+    (-2.0 * u1.ln()).sqrt() * (std::f64::consts::TAU * u2).cos()
+}
+
+/// Monte Carlo images with known noise: a "truth" image, a reference with per-sample
+/// variance v_ref at n_ref spp, and our image at n spp with variance v (Gaussian pixel
+/// noise of the right variance). The floor estimated from the reference's variance channel
+/// matches the RMSE of a perfect image; the measured RMSE follows √(v/n + floor²); the
+/// slope above the floor is −1/2 ± 0.1; the image-mean check passes an unbiased image and
+/// rejects a 2% brighter one.
+#[test]
+fn floor_and_slope_on_synthetic_images() {
+    let mut rng = Pcg64::seed_from_u64(17);
+    let n_pix = 64 * 64;
+    let truth: Vec<[f32; 3]> = (0..n_pix)
+        .map(|i| [0.2 + 0.6 * (i % 64) as f32 / 64.0, 0.3, 0.1])
+        .collect();
+    let v: Vec<[f32; 3]> = (0..n_pix)
+        .map(|i| [0.05 + 0.1 * (i / 64) as f32 / 64.0, 0.02, 0.01])
+        .collect();
+    let n_ref = 16384.0;
+    let noisy = |rng: &mut Pcg64, n: f64, bias: f32| -> Vec<[f32; 3]> {
+        truth
+            .iter()
+            .zip(&v)
+            .map(|(t, var)| {
+                std::array::from_fn(|c| {
+                    t[c] * (1.0 + bias) + (normal(rng) * (var[c] as f64 / n).sqrt()) as f32
+                })
+            })
+            .collect()
+    };
+    let reference = Reference {
+        image: penumbra::io::exr::RgbImage {
+            width: 64,
+            height: 64,
+            rgb: noisy(&mut rng, n_ref, 0.0),
+            variance: Some(v.clone()),
+            attributes: Default::default(),
+        },
+        spp: n_ref as u32,
+        mitsuba_version: None,
+        variant: None,
+        render_seconds: None,
+    };
+    let floor = reference_noise_floor(&v, n_ref);
+    assert!((floor - reference.noise_floor()).abs() < 1e-15);
+    // A perfect image (the truth) shows the floor as its RMSE, to within its sampling error.
+    let perfect = penumbra::metrics::error_metrics(&truth, &reference.image.rgb);
+    assert!(
+        (perfect.rmse / floor - 1.0).abs() < 0.03,
+        "{} vs {floor}",
+        perfect.rmse
+    );
+    let mean_v = penumbra::convergence::mean_of(&v);
+    let pts: Vec<(f64, f64)> = spp_ladder(65536)
+        .into_iter()
+        .map(|n| {
+            let img = noisy(&mut rng, n as f64, 0.0);
+            let rmse = penumbra::metrics::error_metrics(&img, &reference.image.rgb).rmse;
+            let expected = (mean_v / n as f64 + floor * floor).sqrt();
+            assert!(
+                (rmse / expected - 1.0).abs() < 0.03,
+                "n {n}: {rmse} vs {expected}"
+            );
+            (n as f64, rmse)
+        })
+        .collect();
+    let fit = fit_slope(&pts, floor, FLOOR_FACTOR);
+    assert_eq!(fit.used, 6, "{fit:?}");
+    assert!(fit.passed(SLOPE_TOLERANCE), "{fit:?}");
+
+    let n = 256.0;
+    let ok = mean_check(&noisy(&mut rng, n, 0.0), &v, n, &reference);
+    assert!(ok.passed(), "{ok:?}");
+    let bright = mean_check(&noisy(&mut rng, n, 0.02), &v, n, &reference);
+    assert!(!bright.passed(), "{bright:?}");
+    assert!(bright.channels.iter().all(|c| c.relative() > 0.01));
+}
