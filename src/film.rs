@@ -7,19 +7,122 @@
 
 use glam::{Vec2, Vec3};
 
-/// Reconstruction filters (Mitsuba's `rfilter`).
+/// Entries of Mitsuba's filter lookup table: weights are read from `TABLE_RESOLUTION + 1`
+/// values of the filter at |x| = k · radius / TABLE_RESOLUTION, the entry of |x| being
+/// ⌊|x| · TABLE_RESOLUTION / radius⌋. Measured on Mitsuba 3.9.1 with `ImageBlock.put` (its
+/// splat weights equal `rfilter.eval_discretized`, a step function, not `rfilter.eval`).
+pub const TABLE_RESOLUTION: usize = 31;
+
+/// Reconstruction filters (Mitsuba's `rfilter`), all separable: w(x, y) = w(x) w(y), with x
+/// and y in pixels from a pixel's centre.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub enum Filter {
     /// Mitsuba's `box` with its default radius 0.5: each sample counts for the pixel it falls
     /// in, with weight 1.
     Box,
+    /// Mitsuba's `tent`: w(x) = max(0, 1 − |x| / radius) (default radius 1).
+    Tent { radius: f64 },
+    /// Mitsuba's `gaussian` (the default filter): radius 4 σ, w(x) = max(0, exp(−x²/2σ²) −
+    /// exp(−r²/2σ²)), shifted down to reach 0 at the radius (default σ = 0.5 px).
+    Gaussian { stddev: f64 },
 }
 
 impl Filter {
+    /// Mitsuba's default: gaussian with σ = 0.5 pixel.
+    pub const DEFAULT: Filter = Filter::Gaussian { stddev: 0.5 };
+
+    /// Support radius in pixels.
+    pub fn radius(&self) -> f64 {
+        match *self {
+            Filter::Box => 0.5,
+            Filter::Tent { radius } => radius,
+            Filter::Gaussian { stddev } => 4.0 * stddev,
+        }
+    }
+
     /// How many pixels beyond its own a sample can reach.
     pub fn border(&self) -> usize {
         match self {
             Filter::Box => 0,
+            _ => (self.radius() - 0.5).ceil().max(0.0) as usize,
+        }
+    }
+
+    /// The continuous 1D filter (Mitsuba's `eval`), unnormalised.
+    pub fn eval(&self, x: f64) -> f64 {
+        let x = x.abs();
+        match *self {
+            Filter::Box => {
+                if x <= 0.5 {
+                    1.0
+                } else {
+                    0.0
+                }
+            }
+            Filter::Tent { radius } => (1.0 - x / radius).max(0.0),
+            Filter::Gaussian { stddev } => {
+                let a = -0.5 / (stddev * stddev);
+                let r = 4.0 * stddev;
+                ((a * x * x).exp() - (a * r * r).exp()).max(0.0)
+            }
+        }
+    }
+
+    /// The table of the discretised filter (see [`TABLE_RESOLUTION`]).
+    pub fn table(&self) -> [f64; TABLE_RESOLUTION + 1] {
+        let r = self.radius();
+        std::array::from_fn(|k| self.eval(k as f64 * r / TABLE_RESOLUTION as f64))
+    }
+
+    /// The 1D splatting weight at offset `x` from a pixel centre: the discretised filter that
+    /// Mitsuba's image block applies (the box filter: 1 inside the pixel).
+    pub fn weight(&self, x: f64) -> f64 {
+        let r = self.radius();
+        let x = x.abs();
+        if x >= r {
+            return 0.0;
+        }
+        match self {
+            Filter::Box => 1.0,
+            _ => {
+                let k = ((x * TABLE_RESOLUTION as f64 / r) as usize).min(TABLE_RESOLUTION);
+                self.table()[k]
+            }
+        }
+    }
+
+    /// ∫ weight(x)^p dx over x ∈ [lo − c, hi − c], i.e. over film positions [lo, hi] for the
+    /// pixel centred at c: exact, the discretised filter being a step function.
+    pub fn weight_moment(&self, c: f64, lo: f64, hi: f64, p: i32) -> f64 {
+        let r = self.radius();
+        let clip = |a: f64, b: f64| (b.min(hi) - a.max(lo)).max(0.0);
+        match self {
+            Filter::Box => clip(c - 0.5, c + 0.5),
+            _ => {
+                let h = r / TABLE_RESOLUTION as f64;
+                let t = self.table();
+                (0..TABLE_RESOLUTION)
+                    .map(|k| {
+                        let (a, b) = (k as f64 * h, (k + 1) as f64 * h);
+                        t[k].powi(p) * (clip(c + a, c + b) + clip(c - b, c - a))
+                    })
+                    .sum()
+            }
+        }
+    }
+
+    /// ∫ w² / (∫ w)² over the part of the pixel's footprint inside [0, n] (one axis). With
+    /// samples uniform over the image at `spp` per pixel, a pixel's filtered estimate has
+    /// variance σ² · factor_x · factor_y / spp for per-sample variance σ² (1 for the box
+    /// filter; smaller for wider filters; larger at the border).
+    pub fn variance_factor_1d(&self, pixel: usize, n: usize) -> f64 {
+        let c = pixel as f64 + 0.5;
+        let w1 = self.weight_moment(c, 0.0, n as f64, 1);
+        let w2 = self.weight_moment(c, 0.0, n as f64, 2);
+        if w1 > 0.0 {
+            w2 / (w1 * w1)
+        } else {
+            0.0
         }
     }
 }
@@ -32,9 +135,14 @@ pub struct FilmTile {
     pub width: usize,
     pub height: usize,
     filter: Filter,
+    table: [f64; TABLE_RESOLUTION + 1],
     pub sum: Vec<[f64; 3]>,
     pub sum_sq: Vec<[f64; 3]>,
     pub weight: Vec<f64>,
+    /// Σ w² per pixel, for the effective sample count (Σw)² / Σw².
+    pub weight_sq: Vec<f64>,
+    /// Samples added.
+    pub samples: u64,
 }
 
 impl FilmTile {
@@ -49,22 +157,64 @@ impl FilmTile {
             width: w,
             height: h,
             filter,
+            table: filter.table(),
             sum: vec![[0.0; 3]; w * h],
             sum_sq: vec![[0.0; 3]; w * h],
             weight: vec![0.0; w * h],
+            weight_sq: vec![0.0; w * h],
+            samples: 0,
         }
     }
 
+    /// The pixels [first, first + count) of one axis that a sample at `pos` reaches, with
+    /// their weights.
+    #[inline]
+    fn axis_weights(&self, pos: f64, r: f64, out: &mut [f64; 16]) -> (i64, usize) {
+        let scale = TABLE_RESOLUTION as f64 / r;
+        let first = (pos - 0.5 - r).floor() as i64 + 1;
+        let last = (pos - 0.5 + r).ceil() as i64 - 1;
+        let count = ((last - first + 1).max(0) as usize).min(out.len());
+        for (k, w) in out.iter_mut().enumerate().take(count) {
+            let d = ((first + k as i64) as f64 + 0.5 - pos).abs();
+            *w = if d < r {
+                self.table[((d * scale) as usize).min(TABLE_RESOLUTION)]
+            } else {
+                0.0
+            };
+        }
+        (first, count)
+    }
+
     /// Adds a sample with value `v` at continuous film position `pos` (pixels; pixel (i, j)
-    /// spans [i, i+1) × [j, j+1)).
+    /// spans [i, i+1) × [j, j+1), its centre at (i + ½, j + ½)).
     #[inline]
     pub fn add_sample(&mut self, pos: Vec2, v: Vec3) {
+        self.samples += 1;
         match self.filter {
             Filter::Box => {
                 let x = pos.x.floor() as i64 - self.x0;
                 let y = pos.y.floor() as i64 - self.y0;
                 if x >= 0 && y >= 0 && (x as usize) < self.width && (y as usize) < self.height {
                     self.add(x as usize + y as usize * self.width, v, 1.0);
+                }
+            }
+            _ => {
+                let r = self.filter.radius();
+                let (mut wx, mut wy) = ([0.0; 16], [0.0; 16]);
+                let (fx, nx) = self.axis_weights(pos.x as f64, r, &mut wx);
+                let (fy, ny) = self.axis_weights(pos.y as f64, r, &mut wy);
+                for (ky, &wyk) in wy.iter().enumerate().take(ny) {
+                    let y = fy + ky as i64 - self.y0;
+                    if wyk == 0.0 || y < 0 || y >= self.height as i64 {
+                        continue;
+                    }
+                    for (kx, &wxk) in wx.iter().enumerate().take(nx) {
+                        let x = fx + kx as i64 - self.x0;
+                        if wxk == 0.0 || x < 0 || x >= self.width as i64 {
+                            continue;
+                        }
+                        self.add(x as usize + y as usize * self.width, v, wxk * wyk);
+                    }
                 }
             }
         }
@@ -80,6 +230,7 @@ impl FilmTile {
             q[c] += w * x * x;
         }
         self.weight[i] += w;
+        self.weight_sq[i] += w * w;
     }
 }
 
@@ -92,6 +243,10 @@ pub struct Film {
     pub sum: Vec<[f64; 3]>,
     pub sum_sq: Vec<[f64; 3]>,
     pub weight: Vec<f64>,
+    /// Σ w² per pixel.
+    pub weight_sq: Vec<f64>,
+    /// Samples accumulated over the whole image.
+    pub samples: u64,
 }
 
 impl Film {
@@ -104,11 +259,14 @@ impl Film {
             sum: vec![[0.0; 3]; n],
             sum_sq: vec![[0.0; 3]; n],
             weight: vec![0.0; n],
+            weight_sq: vec![0.0; n],
+            samples: 0,
         }
     }
 
     /// Adds a tile's sums (the parts inside the image).
     pub fn merge(&mut self, tile: &FilmTile) {
+        self.samples += tile.samples;
         for ty in 0..tile.height {
             let y = tile.y0 + ty as i64;
             if y < 0 || y >= self.height as i64 {
@@ -126,6 +284,7 @@ impl Film {
                     self.sum_sq[i][c] += tile.sum_sq[j][c];
                 }
                 self.weight[i] += tile.weight[j];
+                self.weight_sq[i] += tile.weight_sq[j];
             }
         }
     }
@@ -133,12 +292,14 @@ impl Film {
     /// Adds another film's sums (same size and filter): the film of a render continued from
     /// where this one stopped.
     pub fn add(&mut self, other: &Film) {
+        self.samples += other.samples;
         for i in 0..self.sum.len().min(other.sum.len()) {
             for c in 0..3 {
                 self.sum[i][c] += other.sum[i][c];
                 self.sum_sq[i][c] += other.sum_sq[i][c];
             }
             self.weight[i] += other.weight[i];
+            self.weight_sq[i] += other.weight_sq[i];
         }
     }
 
@@ -156,9 +317,15 @@ impl Film {
             .collect()
     }
 
-    /// Per-pixel, per-channel variance of one sample, E[x²] − E[x]² (what Mitsuba's `moment`
-    /// integrator yields); divide by the sample count for the variance of the pixel mean.
-    pub fn sample_variance(&self) -> Vec<[f32; 3]> {
+    /// Samples per pixel accumulated (total samples over the pixel count).
+    pub fn spp(&self) -> f64 {
+        self.samples as f64 / (self.width * self.height).max(1) as f64
+    }
+
+    /// Per-pixel, per-channel weighted variance of the samples that reached a pixel,
+    /// Σw f² / Σw − (Σw f / Σw)²: the variance of one sample (E[x²] − E[x]², what Mitsuba's
+    /// `moment` integrator yields with the box filter).
+    pub fn weighted_variance(&self) -> Vec<[f32; 3]> {
         (0..self.sum.len())
             .map(|i| {
                 let w = self.weight[i];
@@ -167,6 +334,28 @@ impl Film {
                         let m = self.sum[i][c] / w;
                         (self.sum_sq[i][c] / w - m * m).max(0.0) as f32
                     })
+                } else {
+                    [0.0; 3]
+                }
+            })
+            .collect()
+    }
+
+    /// Per-pixel, per-channel "per-sample-equivalent" variance: spp × Var(pixel estimate),
+    /// so that dividing by spp gives the variance of the pixel value. With the box filter it
+    /// is the variance of one sample. With splatting filters the pixel value is a weighted
+    /// mean Σw f / Σw whose variance is the weighted sample variance over the effective sample
+    /// count (Σw)² / Σw².
+    pub fn sample_variance(&self) -> Vec<[f32; 3]> {
+        let spp = self.spp();
+        self.weighted_variance()
+            .into_iter()
+            .enumerate()
+            .map(|(i, v)| {
+                let w = self.weight[i];
+                if w > 0.0 {
+                    let f = spp * self.weight_sq[i] / (w * w);
+                    v.map(|x| (x as f64 * f) as f32)
                 } else {
                     [0.0; 3]
                 }
@@ -191,7 +380,7 @@ mod tests {
         assert_eq!(img[2 + 4], [2.0, 2.0, 2.0]);
         assert_eq!(img[3 + 2 * 4], [7.0; 3]);
         assert_eq!(img[0], [0.0; 3]);
-        let var = film.sample_variance();
+        let var = film.weighted_variance();
         assert_eq!(var[2 + 4], [1.0, 0.0, 1.0]);
     }
 
