@@ -7,14 +7,13 @@
 
 use glam::{Vec2, Vec3};
 
-/// Entries of Mitsuba's filter lookup table: weights are read from `TABLE_RESOLUTION + 1`
-/// values of the filter at |x| = k · radius / TABLE_RESOLUTION, the entry of |x| being
-/// ⌊|x| · TABLE_RESOLUTION / radius⌋. Measured on Mitsuba 3.9.1 with `ImageBlock.put` (its
-/// splat weights equal `rfilter.eval_discretized`, a step function, not `rfilter.eval`).
-pub const TABLE_RESOLUTION: usize = 31;
-
 /// Reconstruction filters (Mitsuba's `rfilter`), all separable: w(x, y) = w(x) w(y), with x
 /// and y in pixels from a pixel's centre.
+///
+/// Splat weights are the filter's exact values, as in Mitsuba 3.9.1's JIT variants
+/// (`llvm_ad_rgb`, which renders the references): measured with `ImageBlock.put`, its weights
+/// equal `rfilter.eval`. (Its scalar variants splat with `eval_discretized` instead, a
+/// 32-entry step table, which blurs slightly more.)
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub enum Filter {
     /// Mitsuba's `box` with its default radius 0.5: each sample counts for the pixel it falls
@@ -68,47 +67,44 @@ impl Filter {
         }
     }
 
-    /// The table of the discretised filter (see [`TABLE_RESOLUTION`]).
-    pub fn table(&self) -> [f64; TABLE_RESOLUTION + 1] {
-        let r = self.radius();
-        std::array::from_fn(|k| self.eval(k as f64 * r / TABLE_RESOLUTION as f64))
-    }
-
-    /// The 1D splatting weight at offset `x` from a pixel centre: the discretised filter that
-    /// Mitsuba's image block applies (the box filter: 1 inside the pixel).
+    /// The 1D splatting weight at offset `x` from a pixel centre (0 from the radius on; the
+    /// box filter: 1 inside the pixel).
+    #[inline]
     pub fn weight(&self, x: f64) -> f64 {
-        let r = self.radius();
-        let x = x.abs();
-        if x >= r {
-            return 0.0;
-        }
-        match self {
-            Filter::Box => 1.0,
-            _ => {
-                let k = ((x * TABLE_RESOLUTION as f64 / r) as usize).min(TABLE_RESOLUTION);
-                self.table()[k]
-            }
+        if x.abs() >= self.radius() {
+            0.0
+        } else {
+            self.eval(x)
         }
     }
 
-    /// ∫ weight(x)^p dx over x ∈ [lo − c, hi − c], i.e. over film positions [lo, hi] for the
-    /// pixel centred at c: exact, the discretised filter being a step function.
+    /// ∫ weight(x − c)^p dx over film positions x ∈ [lo, hi] (composite Simpson rule on the
+    /// part inside the support, with the box filter's integral exact).
     pub fn weight_moment(&self, c: f64, lo: f64, hi: f64, p: i32) -> f64 {
         let r = self.radius();
-        let clip = |a: f64, b: f64| (b.min(hi) - a.max(lo)).max(0.0);
-        match self {
-            Filter::Box => clip(c - 0.5, c + 0.5),
-            _ => {
-                let h = r / TABLE_RESOLUTION as f64;
-                let t = self.table();
-                (0..TABLE_RESOLUTION)
-                    .map(|k| {
-                        let (a, b) = (k as f64 * h, (k + 1) as f64 * h);
-                        t[k].powi(p) * (clip(c + a, c + b) + clip(c - b, c - a))
-                    })
-                    .sum()
-            }
+        let (a, b) = (lo.max(c - r), hi.min(c + r));
+        if b <= a {
+            return 0.0;
         }
+        if let Filter::Box = self {
+            return b - a;
+        }
+        // The tent's kink at c: integrate each side separately so the rule stays exact
+        // for the tent and accurate to ~1e-12 for the gaussian.
+        let simpson = |a: f64, b: f64| -> f64 {
+            if b <= a {
+                return 0.0;
+            }
+            let n = 2000;
+            let h = (b - a) / n as f64;
+            let f = |x: f64| self.weight(x - c).powi(p);
+            let mut acc = f(a) + f(b);
+            for k in 1..n {
+                acc += f(a + k as f64 * h) * if k % 2 == 1 { 4.0 } else { 2.0 };
+            }
+            acc * h / 3.0
+        };
+        simpson(a, b.min(c)) + simpson(a.max(c), b)
     }
 
     /// ∫ w² / (∫ w)² over the part of the pixel's footprint inside [0, n] (one axis). With
@@ -135,7 +131,6 @@ pub struct FilmTile {
     pub width: usize,
     pub height: usize,
     filter: Filter,
-    table: [f64; TABLE_RESOLUTION + 1],
     pub sum: Vec<[f64; 3]>,
     pub sum_sq: Vec<[f64; 3]>,
     pub weight: Vec<f64>,
@@ -157,7 +152,6 @@ impl FilmTile {
             width: w,
             height: h,
             filter,
-            table: filter.table(),
             sum: vec![[0.0; 3]; w * h],
             sum_sq: vec![[0.0; 3]; w * h],
             weight: vec![0.0; w * h],
@@ -170,17 +164,12 @@ impl FilmTile {
     /// their weights.
     #[inline]
     fn axis_weights(&self, pos: f64, r: f64, out: &mut [f64; 16]) -> (i64, usize) {
-        let scale = TABLE_RESOLUTION as f64 / r;
         let first = (pos - 0.5 - r).floor() as i64 + 1;
         let last = (pos - 0.5 + r).ceil() as i64 - 1;
         let count = ((last - first + 1).max(0) as usize).min(out.len());
         for (k, w) in out.iter_mut().enumerate().take(count) {
             let d = ((first + k as i64) as f64 + 0.5 - pos).abs();
-            *w = if d < r {
-                self.table[((d * scale) as usize).min(TABLE_RESOLUTION)]
-            } else {
-                0.0
-            };
+            *w = if d < r { self.filter.eval(d) } else { 0.0 };
         }
         (first, count)
     }
