@@ -330,20 +330,25 @@ impl Film {
             .collect()
     }
 
-    /// Per-pixel, per-channel "per-sample-equivalent" variance: spp × Var(pixel estimate),
-    /// so that dividing by spp gives the variance of the pixel value. With the box filter it
-    /// is the variance of one sample. With splatting filters the pixel value is a weighted
-    /// mean Σw f / Σw whose variance is the weighted sample variance over the effective sample
-    /// count (Σw)² / Σw².
+    /// Per-pixel, per-channel "per-sample-equivalent" variance: spp × Var(pixel value), so
+    /// that dividing by spp gives the variance of the pixel value. The pixel value is the
+    /// weighted mean Σw f / Σw; for independent samples with weights w its variance is
+    /// σ² Σw² / (Σw)², and Σw (f − mean)² / Σw estimates σ² (1 − Σw² / (Σw)²), so
+    ///
+    ///   Var(pixel) ≈ weighted_variance · Σw² / ((Σw)² − Σw²),
+    ///
+    /// unbiased (Bessel's correction with the effective sample count (Σw)² / Σw²). With the
+    /// box filter this is the unbiased variance of one sample, n/(n − 1) · (E[x²] − E[x]²).
     pub fn sample_variance(&self) -> Vec<[f32; 3]> {
         let spp = self.spp();
         self.weighted_variance()
             .into_iter()
             .enumerate()
             .map(|(i, v)| {
-                let w = self.weight[i];
-                if w > 0.0 {
-                    let f = spp * self.weight_sq[i] / (w * w);
+                let (w, w2) = (self.weight[i], self.weight_sq[i]);
+                let denom = w * w - w2;
+                if w > 0.0 && denom > 0.0 {
+                    let f = spp * w2 / denom;
                     v.map(|x| (x as f64 * f) as f32)
                 } else {
                     [0.0; 3]
