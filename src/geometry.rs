@@ -58,7 +58,11 @@ impl Ray {
     }
 
     pub(crate) fn to_obvhs(self) -> obvhs::ray::Ray {
-        obvhs::ray::Ray::new(Vec3A::from(self.o), Vec3A::from(self.d), 0.0, self.tmax)
+        // −0.0 + 0.0 = +0.0: obvhs's traversal misses everything along a direction with a
+        // negative-zero component (found by the emitter chi-square test: rays straight down
+        // the −z axis built as (−0, 0, −1) hit nothing).
+        let d = self.d + Vec3::ZERO;
+        obvhs::ray::Ray::new(Vec3A::from(self.o), Vec3A::from(d), 0.0, self.tmax)
     }
 }
 
