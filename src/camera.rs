@@ -119,7 +119,11 @@ impl PerspectiveCamera {
         let (xa, ya, za) = (self.x.as_dvec3(), self.y.as_dvec3(), self.z.as_dvec3());
         let o = self.origin.as_dvec3() + xa * o_local.x + ya * o_local.y;
         let d = (xa * d_local.x + ya * d_local.y + za * d_local.z).normalize();
-        Ray::new((o + d * near_t).as_vec3(), d.as_vec3(), (far_t - near_t) as f32)
+        Ray::new(
+            (o + d * near_t).as_vec3(),
+            d.as_vec3(),
+            (far_t - near_t) as f32,
+        )
     }
 
     /// The local (camera-space) unit direction through film position `s` ∈ [0,1]².

@@ -233,8 +233,11 @@ impl Distribution2D {
             .chunks(nu)
             .map(|row| Distribution1D::new(row.iter().copied()))
             .collect();
-        let marginal =
-            Distribution1D::new(conditional.iter().map(|c| c.as_ref().map_or(0.0, |d| d.total())))?;
+        let marginal = Distribution1D::new(
+            conditional
+                .iter()
+                .map(|c| c.as_ref().map_or(0.0, |d| d.total())),
+        )?;
         Some(Distribution2D {
             nu,
             nv,
@@ -341,7 +344,10 @@ mod tests {
             counts[i] += 1;
         }
         for i in 0..5 {
-            assert!((counts[i] as f64 / n as f64 - w[i] / 10.0).abs() < 1e-3, "{counts:?}");
+            assert!(
+                (counts[i] as f64 / n as f64 - w[i] / 10.0).abs() < 1e-3,
+                "{counts:?}"
+            );
             assert!((t.pmf(i) - w[i] / 10.0).abs() < 1e-12);
         }
         assert!(AliasTable::new(&[0.0]).is_none());
@@ -355,14 +361,18 @@ mod tests {
         let mut integral = 0.0;
         for j in 0..3 {
             for i in 0..3 {
-                integral += d.pdf(Vec2::new((i as f32 + 0.5) / 3.0, (j as f32 + 0.5) / 3.0)) as f64 / 9.0;
+                integral +=
+                    d.pdf(Vec2::new((i as f32 + 0.5) / 3.0, (j as f32 + 0.5) / 3.0)) as f64 / 9.0;
             }
         }
         assert!((integral - 1.0).abs() < 1e-6);
         for k in 0..200 {
             let u = Vec2::new((k as f32 * 0.618_034).fract(), (k as f32 + 0.5) / 200.0);
             let (uv, pdf) = d.sample(u);
-            assert!(pdf > 0.0 && (pdf - d.pdf(uv)).abs() < 1e-5 * pdf, "{uv} {pdf}");
+            assert!(
+                pdf > 0.0 && (pdf - d.pdf(uv)).abs() < 1e-5 * pdf,
+                "{uv} {pdf}"
+            );
         }
     }
 }

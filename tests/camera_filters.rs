@@ -43,7 +43,10 @@ fn each_filter_integrates_to_one_over_its_support() {
             .map(|i| f.weight(-r + (i as f64 + 0.5) * h) / norm)
             .collect();
         let one_d: f64 = w1.iter().sum::<f64>() * h;
-        let two_d: f64 = w1.iter().map(|a| w1.iter().map(|b| a * b).sum::<f64>()).sum::<f64>()
+        let two_d: f64 = w1
+            .iter()
+            .map(|a| w1.iter().map(|b| a * b).sum::<f64>())
+            .sum::<f64>()
             * h
             * h;
         assert!((one_d - 1.0).abs() < 1e-5, "{f:?}: 1D integral {one_d}");
@@ -102,7 +105,11 @@ fn a_constant_image_stays_constant_under_every_filter_including_the_border() {
                 );
             }
         }
-        assert!(out.film.sample_variance().iter().all(|v| v.iter().all(|&x| x < 1e-10)));
+        assert!(out
+            .film
+            .sample_variance()
+            .iter()
+            .all(|v| v.iter().all(|&x| x < 1e-10)));
         assert_eq!(out.film.samples, 37 * 23 * 3);
     }
 }
@@ -116,7 +123,10 @@ fn variance_factor_matches_mitsubas_filter() {
     let gauss = [0.73490459, 0.56625838, 0.5649254, 0.5649254];
     for (i, k) in gauss.iter().enumerate() {
         let ours = Filter::DEFAULT.variance_factor_1d(i, 8);
-        assert!((ours - k).abs() < 1e-4 * k, "gaussian pixel {i}: {ours} vs {k}");
+        assert!(
+            (ours - k).abs() < 1e-4 * k,
+            "gaussian pixel {i}: {ours} vs {k}"
+        );
         assert!((Filter::DEFAULT.variance_factor_1d(7 - i, 8) - ours).abs() < 1e-12);
     }
     let tent = Filter::Tent { radius: 1.0 };
@@ -195,7 +205,11 @@ fn distance_to_line(p: Vec3, o: Vec3, d: Vec3) -> f32 {
 
 #[test]
 fn thin_lens_rays_through_centre_and_corners_meet_on_the_plane_of_focus() {
-    let m = look(DVec3::new(0.0, 1.0, 6.0), DVec3::new(0.0, 1.0, 0.0), DVec3::Y);
+    let m = look(
+        DVec3::new(0.0, 1.0, 6.0),
+        DVec3::new(0.0, 1.0, 0.0),
+        DVec3::Y,
+    );
     let pinhole = PerspectiveCamera::new(m, 50.0, 1.5, 0.01, 1000.0);
     let fd = 4.0;
     let lens = pinhole.clone().with_thin_lens(ThinLens {
@@ -232,7 +246,11 @@ fn thin_lens_rays_through_centre_and_corners_meet_on_the_plane_of_focus() {
 
 #[test]
 fn thin_lens_with_aperture_zero_is_the_pinhole() {
-    let m = look(DVec3::new(1.0, 2.0, 3.0), DVec3::new(-1.0, 0.5, 0.0), DVec3::Y);
+    let m = look(
+        DVec3::new(1.0, 2.0, 3.0),
+        DVec3::new(-1.0, 0.5, 0.0),
+        DVec3::Y,
+    );
     let pinhole = PerspectiveCamera::new(m, 40.0, 0.75, 0.1, 100.0);
     let lens = pinhole.clone().with_thin_lens(ThinLens {
         aperture_radius: 0.0,
@@ -260,7 +278,10 @@ fn tiny_light_image(depth: f64) -> Vec<[f32; 3]> {
         0.01,
         100.0,
     );
-    let d = cam.generate_ray(Vec2::new(40.5 / 64.0, 20.5 / 64.0)).d.as_dvec3();
+    let d = cam
+        .generate_ray(Vec2::new(40.5 / 64.0, 20.5 / 64.0))
+        .d
+        .as_dvec3();
     let c = d / -d.z * depth;
     let xml = format!(
         r#"<scene version="3.0.0">
@@ -283,7 +304,9 @@ fn tiny_light_image(depth: f64) -> Vec<[f32; 3]> {
 </scene>"#,
         c.x, c.y, c.z
     );
-    render_scene(&scene_from_str(&xml), 256, 3, None).film.image()
+    render_scene(&scene_from_str(&xml), 256, 3, None)
+        .film
+        .image()
 }
 
 #[test]
@@ -292,7 +315,11 @@ fn points_on_the_focal_plane_project_sharply() {
     // 0.008) lies inside pixel (40, 20), whatever lens sample a ray went through.
     let img = tiny_light_image(5.0);
     let lit: Vec<usize> = (0..img.len()).filter(|&i| img[i][0] > 0.0).collect();
-    assert_eq!(lit, vec![20 * 64 + 40], "in focus: only the sphere's pixel is lit");
+    assert_eq!(
+        lit,
+        vec![20 * 64 + 40],
+        "in focus: only the sphere's pixel is lit"
+    );
     // Away from the focal plane the same light is spread over its circle of confusion:
     // at depth 10 its diameter is 2·0.4·(10 − 5)/10 = 0.4 at the light, ≈ 4.7 pixels.
     let img = tiny_light_image(10.0);

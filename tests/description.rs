@@ -458,7 +458,11 @@ fn sensor_errors() {
 </sensor>"#,
     ));
     assert_eq!(
-        (d.sensor.film.width, d.sensor.film.height, d.sensor.film.rfilter),
+        (
+            d.sensor.film.width,
+            d.sensor.film.height,
+            d.sensor.film.rfilter
+        ),
         (768, 576, FilterDesc::Gaussian { stddev: 0.5 })
     );
     let xml = scene(
@@ -586,19 +590,29 @@ fn box_tent_and_gaussian_filters_are_accepted() {
         );
     }
     let film = |children: &str| {
-        desc(&sensor_scene(r#"<float name="fov" value="30"/>"#, "", children))
-            .sensor
-            .film
-            .rfilter
+        desc(&sensor_scene(
+            r#"<float name="fov" value="30"/>"#,
+            "",
+            children,
+        ))
+        .sensor
+        .film
+        .rfilter
     };
     // Mitsuba's default filter: gaussian with stddev 0.5.
     assert_eq!(film(""), FilterDesc::Gaussian { stddev: 0.5 });
-    assert_eq!(film(r#"<rfilter type="gaussian"/>"#), FilterDesc::Gaussian { stddev: 0.5 });
+    assert_eq!(
+        film(r#"<rfilter type="gaussian"/>"#),
+        FilterDesc::Gaussian { stddev: 0.5 }
+    );
     assert_eq!(
         film(r#"<rfilter type="gaussian"><float name="stddev" value="0.25"/></rfilter>"#),
         FilterDesc::Gaussian { stddev: 0.25 }
     );
-    assert_eq!(film(r#"<rfilter type="tent"/>"#), FilterDesc::Tent { radius: 1.0 });
+    assert_eq!(
+        film(r#"<rfilter type="tent"/>"#),
+        FilterDesc::Tent { radius: 1.0 }
+    );
     assert_eq!(
         film(r#"<rfilter type="tent"><float name="radius" value="1.5"/></rfilter>"#),
         FilterDesc::Tent { radius: 1.5 }
@@ -1479,10 +1493,15 @@ fn scene_level_emitters_and_their_defaults() {
         r#"<emitter type="constant"/>
 <emitter type="envmap"><string name="filename" value="sky.exr"/></emitter>"#,
     );
-    assert_error(&xml, "<emitter type=\"envmap\"", &["at most one environment emitter"]);
+    assert_error(
+        &xml,
+        "<emitter type=\"envmap\"",
+        &["at most one environment emitter"],
+    );
     let xml = with_sensor(r#"<emitter type="envmap"/>"#);
     assert_error(&xml, "<emitter", &["needs a 'filename'"]);
-    let xml = with_sensor(r#"<emitter type="spot"><float name="beam_width" value="30"/></emitter>"#);
+    let xml =
+        with_sensor(r#"<emitter type="spot"><float name="beam_width" value="30"/></emitter>"#);
     assert_error(&xml, "<emitter", &["beam_width"]);
 }
 
@@ -1694,13 +1713,17 @@ fn thinlens_sensor_parameters() {
         "focus_distance defaults to far_clip, as in Mitsuba"
     );
     assert_eq!(
-        lens(r#"<float name="aperture_radius" value="0"/><float name="focus_distance" value="2"/>"#)
-            .unwrap(),
+        lens(
+            r#"<float name="aperture_radius" value="0"/><float name="focus_distance" value="2"/>"#
+        )
+        .unwrap(),
         Some((0.0, 2.0))
     );
     let e = lens("").unwrap_err().to_string();
     assert!(e.contains("needs an 'aperture_radius'"), "{e}");
-    let e = lens(r#"<float name="aperture_radius" value="-1"/>"#).unwrap_err().to_string();
+    let e = lens(r#"<float name="aperture_radius" value="-1"/>"#)
+        .unwrap_err()
+        .to_string();
     assert!(e.contains("aperture_radius"), "{e}");
     assert_eq!(desc(&with_sensor("")).sensor.thin_lens, None);
 }

@@ -192,7 +192,8 @@ fn sphere_lights_from_outside_and_inside_chi2() {
 
 #[test]
 fn environment_lights_chi2() {
-    let s = scene(r#"<emitter type="constant"><rgb name="radiance" value="0.2, 0.5, 1"/></emitter>"#);
+    let s =
+        scene(r#"<emitter type="constant"><rgb name="radiance" value="0.2, 0.5, 1"/></emitter>"#);
     check_sampling("constant", &s, Vec3::ZERO, 8);
     let s = scene(
         r#"<emitter type="envmap">
@@ -228,7 +229,12 @@ fn several_lights_selected_by_power_chi2() {
     let p_env = PI * PI * r * r * 0.05;
     assert!(((pmf(0) / pmf(3)) / (p_rect / p_env) - 1.0).abs() < 1e-5);
     assert!(((0..4).map(pmf).sum::<f64>() - 1.0).abs() < 1e-6);
-    check_sampling("rectangle + sphere + spot + constant", &s, Vec3::new(0.1, 0.0, 0.5), 10);
+    check_sampling(
+        "rectangle + sphere + spot + constant",
+        &s,
+        Vec3::new(0.1, 0.0, 0.5),
+        10,
+    );
 }
 
 /// The NEE estimate of the irradiance at `si` (normal `si.frame.n`), unoccluded, with its
@@ -271,7 +277,11 @@ fn analytic_irradiance_from_disk_sphere_and_constant_environment() {
     </shape>"#,
     );
     let si = reference_point(Vec3::ZERO, Vec3::Z);
-    assert_irradiance("disk", nee_irradiance(&s, &si, 200_000, 11), PI * 2.0 * 0.25 / 1.25);
+    assert_irradiance(
+        "disk",
+        nee_irradiance(&s, &si, 200_000, 11),
+        PI * 2.0 * 0.25 / 1.25,
+    );
     // Sphere of radius r at distance d, facing its centre: E = π L (r / d)².
     let s = scene(
         r#"<shape type="sphere">
@@ -279,7 +289,11 @@ fn analytic_irradiance_from_disk_sphere_and_constant_environment() {
         <emitter type="area"><float name="radiance" value="4"/></emitter>
     </shape>"#,
     );
-    assert_irradiance("sphere", nee_irradiance(&s, &si, 200_000, 12), PI * 4.0 / 36.0);
+    assert_irradiance(
+        "sphere",
+        nee_irradiance(&s, &si, 200_000, 12),
+        PI * 4.0 / 36.0,
+    );
     // Constant environment on an unoccluded plane: E = π L.
     let s = scene(r#"<emitter type="constant"><float name="radiance" value="0.7"/></emitter>"#);
     assert_irradiance("constant", nee_irradiance(&s, &si, 200_000, 13), PI * 0.7);
@@ -322,14 +336,25 @@ fn delta_lights_give_mitsubas_values() {
     // values of intensity · falloff: 1 up to 15°, 0.8 at 16°, 0.4 at 18°, 0.02 at 19.9°, 0
     // beyond 20°.
     let s = scene(r#"<emitter type="spot"><float name="intensity" value="1"/></emitter>"#);
-    for (deg, expected) in [(0.0, 1.0), (10.0, 1.0), (14.0, 1.0), (16.0, 0.8), (18.0, 0.4), (19.9, 0.02), (20.1, 0.0)] {
+    for (deg, expected) in [
+        (0.0, 1.0),
+        (10.0, 1.0),
+        (14.0, 1.0),
+        (16.0, 0.8),
+        (18.0, 0.4),
+        (19.9, 0.02),
+        (20.1, 0.0),
+    ] {
         let a = (deg as f32).to_radians();
         let p = Vec3::new(a.sin() * 2.0, 0.0, a.cos() * 2.0);
         let si = reference_point(p, -Vec3::Z);
         let got = s
             .sample_emitter_direction(&si, Vec2::splat(0.5))
             .map_or(0.0, |ds| ds.radiance.x * 4.0);
-        assert!((got - expected).abs() < 2e-4, "spot at {deg}°: {got} vs {expected}");
+        assert!(
+            (got - expected).abs() < 2e-4,
+            "spot at {deg}°: {got} vs {expected}"
+        );
     }
     // Directional: irradiance E from the opposite of its direction, shadow ray to ∞.
     let s = scene(

@@ -49,7 +49,10 @@ impl EnvMapEmitter {
             return None;
         }
         let texels: Vec<Spectrum> = texels.iter().map(|t| Vec3::from(*t) * scale).collect();
-        let lum: Vec<f64> = texels.iter().map(|t| luminance(*t).max(0.0) as f64).collect();
+        let lum: Vec<f64> = texels
+            .iter()
+            .map(|t| luminance(*t).max(0.0) as f64)
+            .collect();
         let at = |v: &[f64], i: usize, j: usize| v[j * width + (i % width)];
         let (nu, nv) = (width, height - 1);
         let mut weights = Vec::with_capacity(nu * nv);
@@ -62,8 +65,9 @@ impl EnvMapEmitter {
         for j in 0..nv {
             let band = cos_row(j) - cos_row(j + 1);
             for i in 0..nu {
-                let corners =
-                    |v: &[f64]| (at(v, i, j) + at(v, i + 1, j) + at(v, i, j + 1) + at(v, i + 1, j + 1)) / 4.0;
+                let corners = |v: &[f64]| {
+                    (at(v, i, j) + at(v, i + 1, j) + at(v, i, j + 1) + at(v, i + 1, j + 1)) / 4.0
+                };
                 weights.push(corners(&lum) * band);
                 mean += corners(&mean_rgb) * band * 2.0 * std::f64::consts::PI / nu as f64;
             }

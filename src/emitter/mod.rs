@@ -115,9 +115,7 @@ impl Emitter {
         let disk = std::f64::consts::PI * scene_radius * scene_radius;
         match self {
             Emitter::Area(e) => {
-                std::f64::consts::PI
-                    * shapes[e.shape as usize].geometry.area()
-                    * mean(e.radiance)
+                std::f64::consts::PI * shapes[e.shape as usize].geometry.area() * mean(e.radiance)
             }
             Emitter::Point(e) => 4.0 * std::f64::consts::PI * mean(e.intensity),
             Emitter::Spot(e) => e.solid_angle() * mean(e.intensity),

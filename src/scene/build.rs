@@ -12,10 +12,10 @@ use crate::emitter::{
     AreaEmitter, ConstantEmitter, DirectionalEmitter, Emitter, EnvMapEmitter, PointEmitter,
     SpotEmitter,
 };
-use crate::sampling::AliasTable;
 use crate::error::{Error, Result};
 use crate::film::Filter;
 use crate::integrator::{Integrator, PathIntegrator};
+use crate::sampling::AliasTable;
 use crate::shape::mesh::angle_weighted_normals;
 use crate::shape::{Disk, Mesh, Shape, ShapeGeometry, Sphere};
 use glam::{DMat3, DMat4, DVec3, Vec2, Vec3};

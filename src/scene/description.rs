@@ -600,7 +600,11 @@ fn rfilter_desc(c: &Object) -> Result<FilterDesc> {
     fp.finish()?;
     if let FilterDesc::Tent { radius: r } | FilterDesc::Gaussian { stddev: r } = f {
         // At most 15 pixels of reach per side: beyond that a filter is surely a mistake.
-        let radius = if matches!(f, FilterDesc::Gaussian { .. }) { 4.0 * r } else { r };
+        let radius = if matches!(f, FilterDesc::Gaussian { .. }) {
+            4.0 * r
+        } else {
+            r
+        };
         if radius > 7.5 {
             return Err(Error::scene(
                 &c.location,
@@ -813,7 +817,10 @@ fn scene_emitter_desc(o: &Object) -> Result<EmitterDesc> {
             let direction = p.point("direction", to_world.transform_vector3(DVec3::Z))?;
             let irradiance = p.color("irradiance")?.unwrap_or(DVec3::ONE);
             let direction = direction.try_normalize().ok_or_else(|| {
-                Error::scene(&o.location, "the direction of a directional emitter is zero")
+                Error::scene(
+                    &o.location,
+                    "the direction of a directional emitter is zero",
+                )
             })?;
             EmitterDesc::Directional {
                 direction,
