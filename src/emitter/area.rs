@@ -21,12 +21,15 @@ pub struct AreaEmitter {
 }
 
 /// The cone a sphere subtends from `p_ref`: (unit axis towards the centre, distance to the
-/// centre, cos θmax, 1 − cos θmax), or `None` when `p_ref` is inside or on the sphere.
+/// centre, cos θmax, 1 − cos θmax), or `None` when `p_ref` is inside or on the sphere. Points
+/// within a relative 5e-5 of the surface count as on it (area sampling, valid on both sides):
+/// a path vertex on the sphere itself lies on either side by rounding, and from just outside
+/// the cone's near intersection would be the vertex itself.
 fn sphere_cone(s: &Sphere, p_ref: Vec3) -> Option<(DVec3, f64, f64, f64)> {
     let v = s.center - p_ref.as_dvec3();
     let dc2 = v.length_squared();
     let r2 = s.radius * s.radius;
-    if dc2 <= r2 {
+    if dc2 <= r2 * (1.0 + 1e-4) {
         return None;
     }
     let dc = dc2.sqrt();
