@@ -196,6 +196,19 @@ fn scene_emitter(e: &EmitterDesc) -> Result<Emitter> {
             location,
         } => {
             let img = crate::io::exr::read(filename)?;
+            if img
+                .rgb
+                .iter()
+                .any(|t| t.iter().any(|x| !x.is_finite() || *x < 0.0))
+            {
+                return Err(Error::scene(
+                    location,
+                    format!(
+                        "{}: the environment map has negative or non-finite texels",
+                        filename.display()
+                    ),
+                ));
+            }
             let m = DMat3::from_mat4(*to_world);
             // Keep only the rotation (Mitsuba's to_world for an envmap is a rotation).
             let axes = [m.x_axis, m.y_axis, m.z_axis].map(|a| a.normalize_or_zero());
