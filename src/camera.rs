@@ -1,8 +1,15 @@
 //! Mitsuba's `perspective` sensor: a pinhole camera looking down its local +z axis, with
 //! local +y up and local +x to the *left* of the image (Mitsuba's convention, so that
 //! `lookat` cameras are not mirrored). Film position (0,0) is the top-left corner.
+//!
+//! Mitsuba's `thinlens` sensor is the same camera with a thin lens (Kolb, Mitchell and
+//! Hanrahan 1995; pbrt-v4 §5.2.3): rays start at a point sampled uniformly on the aperture
+//! disk of radius `aperture_radius` (concentric map) in the local z = 0 plane and pass
+//! through the point that the pinhole ray meets on the plane of focus z = `focus_distance`,
+//! which is therefore imaged sharply.
 
 use crate::geometry::Ray;
+use crate::sampling::square_to_uniform_disk_concentric;
 use glam::{DMat4, DVec3, Vec2, Vec3};
 
 /// Which image axis `fov` spans (Mitsuba's `fov_axis`).
@@ -52,6 +59,15 @@ pub struct PerspectiveCamera {
     aspect: f64,
     near_clip: f32,
     far_clip: f32,
+    /// The thin lens, if any (`None`: pinhole).
+    lens: Option<ThinLens>,
+}
+
+/// Aperture and focus of a `thinlens` sensor.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct ThinLens {
+    pub aperture_radius: f64,
+    pub focus_distance: f64,
 }
 
 impl PerspectiveCamera {
@@ -67,7 +83,47 @@ impl PerspectiveCamera {
             aspect,
             near_clip: near_clip as f32,
             far_clip: far_clip as f32,
+            lens: None,
         }
+    }
+
+    /// The same camera with a thin lens (Mitsuba's `thinlens`).
+    pub fn with_thin_lens(mut self, lens: ThinLens) -> Self {
+        self.lens = Some(lens);
+        self
+    }
+
+    /// Whether rays need an aperture sample (Mitsuba's `needs_aperture_sample`): the sampler
+    /// then draws it right after the pixel position.
+    pub fn needs_aperture_sample(&self) -> bool {
+        self.lens.is_some()
+    }
+
+    /// The primary ray through film position `s` ∈ [0,1]² and, for a thin lens, the aperture
+    /// sample `u` ∈ [0,1)² (ignored by a pinhole). Starts on the near clipping plane and ends
+    /// on the far one (measured along the local z axis), as in Mitsuba.
+    pub fn generate_ray_lens(&self, s: Vec2, u: Vec2) -> Ray {
+        let Some(lens) = self.lens else {
+            return self.generate_ray(s);
+        };
+        let x = (1.0 - 2.0 * s.x as f64) * self.tan_half_x;
+        let y = (1.0 - 2.0 * s.y as f64) * self.tan_half_x / self.aspect;
+        // The pinhole ray meets the plane of focus at (x, y, 1) · focus_distance.
+        let focus = DVec3::new(x, y, 1.0) * lens.focus_distance;
+        let a = square_to_uniform_disk_concentric(u).as_dvec2() * lens.aperture_radius;
+        let o_local = DVec3::new(a.x, a.y, 0.0);
+        let d_local = (focus - o_local).normalize();
+        let inv_z = 1.0 / d_local.z;
+        let near_t = self.near_clip as f64 * inv_z;
+        let far_t = self.far_clip as f64 * inv_z;
+        let (xa, ya, za) = (self.x.as_dvec3(), self.y.as_dvec3(), self.z.as_dvec3());
+        let o = self.origin.as_dvec3() + xa * o_local.x + ya * o_local.y;
+        let d = (xa * d_local.x + ya * d_local.y + za * d_local.z).normalize();
+        Ray::new(
+            (o + d * near_t).as_vec3(),
+            d.as_vec3(),
+            (far_t - near_t) as f32,
+        )
     }
 
     /// The local (camera-space) unit direction through film position `s` ∈ [0,1]².

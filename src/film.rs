@@ -7,19 +7,118 @@
 
 use glam::{Vec2, Vec3};
 
-/// Reconstruction filters (Mitsuba's `rfilter`).
+/// Reconstruction filters (Mitsuba's `rfilter`), all separable: w(x, y) = w(x) w(y), with x
+/// and y in pixels from a pixel's centre.
+///
+/// Splat weights are the filter's exact values, as in Mitsuba 3.9.1's JIT variants
+/// (`llvm_ad_rgb`, which renders the references): measured with `ImageBlock.put`, its weights
+/// equal `rfilter.eval`. (Its scalar variants splat with `eval_discretized` instead, a
+/// 32-entry step table, which blurs slightly more.)
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub enum Filter {
     /// Mitsuba's `box` with its default radius 0.5: each sample counts for the pixel it falls
     /// in, with weight 1.
     Box,
+    /// Mitsuba's `tent`: w(x) = max(0, 1 − |x| / radius) (default radius 1).
+    Tent { radius: f64 },
+    /// Mitsuba's `gaussian` (the default filter): radius 4 σ, w(x) = max(0, exp(−x²/2σ²) −
+    /// exp(−r²/2σ²)), shifted down to reach 0 at the radius (default σ = 0.5 px).
+    Gaussian { stddev: f64 },
 }
 
 impl Filter {
+    /// Mitsuba's default: gaussian with σ = 0.5 pixel.
+    pub const DEFAULT: Filter = Filter::Gaussian { stddev: 0.5 };
+
+    /// Support radius in pixels.
+    pub fn radius(&self) -> f64 {
+        match *self {
+            Filter::Box => 0.5,
+            Filter::Tent { radius } => radius,
+            Filter::Gaussian { stddev } => 4.0 * stddev,
+        }
+    }
+
     /// How many pixels beyond its own a sample can reach.
     pub fn border(&self) -> usize {
         match self {
             Filter::Box => 0,
+            _ => (self.radius() - 0.5).ceil().max(0.0) as usize,
+        }
+    }
+
+    /// The continuous 1D filter (Mitsuba's `eval`), unnormalised.
+    pub fn eval(&self, x: f64) -> f64 {
+        let x = x.abs();
+        match *self {
+            Filter::Box => {
+                if x <= 0.5 {
+                    1.0
+                } else {
+                    0.0
+                }
+            }
+            Filter::Tent { radius } => (1.0 - x / radius).max(0.0),
+            Filter::Gaussian { stddev } => {
+                let a = -0.5 / (stddev * stddev);
+                let r = 4.0 * stddev;
+                ((a * x * x).exp() - (a * r * r).exp()).max(0.0)
+            }
+        }
+    }
+
+    /// The 1D splatting weight at offset `x` from a pixel centre (0 from the radius on; the
+    /// box filter: 1 inside the pixel).
+    #[inline]
+    pub fn weight(&self, x: f64) -> f64 {
+        if x.abs() >= self.radius() {
+            0.0
+        } else {
+            self.eval(x)
+        }
+    }
+
+    /// ∫ weight(x − c)^p dx over film positions x ∈ [lo, hi] (composite Simpson rule on the
+    /// part inside the support, with the box filter's integral exact).
+    pub fn weight_moment(&self, c: f64, lo: f64, hi: f64, p: i32) -> f64 {
+        let r = self.radius();
+        let (a, b) = (lo.max(c - r), hi.min(c + r));
+        if b <= a {
+            return 0.0;
+        }
+        if let Filter::Box = self {
+            return b - a;
+        }
+        // The tent's kink at c: integrate each side separately so the rule stays exact
+        // for the tent and accurate to ~1e-12 for the gaussian.
+        let simpson = |a: f64, b: f64| -> f64 {
+            if b <= a {
+                return 0.0;
+            }
+            let n = 2000;
+            let h = (b - a) / n as f64;
+            let f = |x: f64| self.weight(x - c).powi(p);
+            let mut acc = f(a) + f(b);
+            for k in 1..n {
+                acc += f(a + k as f64 * h) * if k % 2 == 1 { 4.0 } else { 2.0 };
+            }
+            acc * h / 3.0
+        };
+        simpson(a, b.min(c)) + simpson(a.max(c), b)
+    }
+
+    /// ∫ w² / (∫ w)² over the part of the pixel's footprint inside [0, n] (one axis). With
+    /// samples uniform over the image at `spp` per pixel, a pixel's filtered estimate has
+    /// variance σ² · factor_x · factor_y / spp for per-sample variance σ² (1 for the box
+    /// filter; smaller for wider filters; larger at the border).
+    pub fn variance_factor_1d(&self, pixel: usize, n: usize) -> f64 {
+        let c = pixel as f64 + 0.5;
+        let w1 = self.weight_moment(c, 0.0, n as f64, 1);
+        let w2 = self.weight_moment(c, 0.0, n as f64, 2);
+        if w1 > 0.0 {
+            w2 / (w1 * w1)
+        } else {
+            0.0
         }
     }
 }
@@ -35,6 +134,15 @@ pub struct FilmTile {
     pub sum: Vec<[f64; 3]>,
     pub sum_sq: Vec<[f64; 3]>,
     pub weight: Vec<f64>,
+    /// Σ w² per pixel.
+    pub weight_sq: Vec<f64>,
+    /// Σ w² f and Σ w² f² per pixel and channel, and Σ w³: for the variance of the
+    /// weighted mean (see [`Film::sample_variance`]).
+    pub sum_w2: Vec<[f64; 3]>,
+    pub sum_sq_w2: Vec<[f64; 3]>,
+    pub weight_cube: Vec<f64>,
+    /// Samples added.
+    pub samples: u64,
 }
 
 impl FilmTile {
@@ -52,13 +160,33 @@ impl FilmTile {
             sum: vec![[0.0; 3]; w * h],
             sum_sq: vec![[0.0; 3]; w * h],
             weight: vec![0.0; w * h],
+            weight_sq: vec![0.0; w * h],
+            sum_w2: vec![[0.0; 3]; w * h],
+            sum_sq_w2: vec![[0.0; 3]; w * h],
+            weight_cube: vec![0.0; w * h],
+            samples: 0,
         }
     }
 
+    /// The pixels [first, first + count) of one axis that a sample at `pos` reaches, with
+    /// their weights.
+    #[inline]
+    fn axis_weights(&self, pos: f64, r: f64, out: &mut [f64; 16]) -> (i64, usize) {
+        let first = (pos - 0.5 - r).floor() as i64 + 1;
+        let last = (pos - 0.5 + r).ceil() as i64 - 1;
+        let count = ((last - first + 1).max(0) as usize).min(out.len());
+        for (k, w) in out.iter_mut().enumerate().take(count) {
+            let d = ((first + k as i64) as f64 + 0.5 - pos).abs();
+            *w = if d < r { self.filter.eval(d) } else { 0.0 };
+        }
+        (first, count)
+    }
+
     /// Adds a sample with value `v` at continuous film position `pos` (pixels; pixel (i, j)
-    /// spans [i, i+1) × [j, j+1)).
+    /// spans [i, i+1) × [j, j+1), its centre at (i + ½, j + ½)).
     #[inline]
     pub fn add_sample(&mut self, pos: Vec2, v: Vec3) {
+        self.samples += 1;
         match self.filter {
             Filter::Box => {
                 let x = pos.x.floor() as i64 - self.x0;
@@ -67,19 +195,41 @@ impl FilmTile {
                     self.add(x as usize + y as usize * self.width, v, 1.0);
                 }
             }
+            _ => {
+                let r = self.filter.radius();
+                let (mut wx, mut wy) = ([0.0; 16], [0.0; 16]);
+                let (fx, nx) = self.axis_weights(pos.x as f64, r, &mut wx);
+                let (fy, ny) = self.axis_weights(pos.y as f64, r, &mut wy);
+                for (ky, &wyk) in wy.iter().enumerate().take(ny) {
+                    let y = fy + ky as i64 - self.y0;
+                    if wyk == 0.0 || y < 0 || y >= self.height as i64 {
+                        continue;
+                    }
+                    for (kx, &wxk) in wx.iter().enumerate().take(nx) {
+                        let x = fx + kx as i64 - self.x0;
+                        if wxk == 0.0 || x < 0 || x >= self.width as i64 {
+                            continue;
+                        }
+                        self.add(x as usize + y as usize * self.width, v, wxk * wyk);
+                    }
+                }
+            }
         }
     }
 
     #[inline]
     fn add(&mut self, i: usize, v: Vec3, w: f64) {
-        let s = &mut self.sum[i];
-        let q = &mut self.sum_sq[i];
+        let w2 = w * w;
         for c in 0..3 {
             let x = v[c] as f64;
-            s[c] += w * x;
-            q[c] += w * x * x;
+            self.sum[i][c] += w * x;
+            self.sum_sq[i][c] += w * x * x;
+            self.sum_w2[i][c] += w2 * x;
+            self.sum_sq_w2[i][c] += w2 * x * x;
         }
         self.weight[i] += w;
+        self.weight_sq[i] += w2;
+        self.weight_cube[i] += w2 * w;
     }
 }
 
@@ -92,6 +242,14 @@ pub struct Film {
     pub sum: Vec<[f64; 3]>,
     pub sum_sq: Vec<[f64; 3]>,
     pub weight: Vec<f64>,
+    /// Σ w² per pixel.
+    pub weight_sq: Vec<f64>,
+    /// Σ w² f, Σ w² f² and Σ w³, as in [`FilmTile`].
+    pub sum_w2: Vec<[f64; 3]>,
+    pub sum_sq_w2: Vec<[f64; 3]>,
+    pub weight_cube: Vec<f64>,
+    /// Samples accumulated over the whole image.
+    pub samples: u64,
 }
 
 impl Film {
@@ -104,11 +262,17 @@ impl Film {
             sum: vec![[0.0; 3]; n],
             sum_sq: vec![[0.0; 3]; n],
             weight: vec![0.0; n],
+            weight_sq: vec![0.0; n],
+            sum_w2: vec![[0.0; 3]; n],
+            sum_sq_w2: vec![[0.0; 3]; n],
+            weight_cube: vec![0.0; n],
+            samples: 0,
         }
     }
 
     /// Adds a tile's sums (the parts inside the image).
     pub fn merge(&mut self, tile: &FilmTile) {
+        self.samples += tile.samples;
         for ty in 0..tile.height {
             let y = tile.y0 + ty as i64;
             if y < 0 || y >= self.height as i64 {
@@ -124,8 +288,12 @@ impl Film {
                 for c in 0..3 {
                     self.sum[i][c] += tile.sum[j][c];
                     self.sum_sq[i][c] += tile.sum_sq[j][c];
+                    self.sum_w2[i][c] += tile.sum_w2[j][c];
+                    self.sum_sq_w2[i][c] += tile.sum_sq_w2[j][c];
                 }
                 self.weight[i] += tile.weight[j];
+                self.weight_sq[i] += tile.weight_sq[j];
+                self.weight_cube[i] += tile.weight_cube[j];
             }
         }
     }
@@ -133,12 +301,17 @@ impl Film {
     /// Adds another film's sums (same size and filter): the film of a render continued from
     /// where this one stopped.
     pub fn add(&mut self, other: &Film) {
+        self.samples += other.samples;
         for i in 0..self.sum.len().min(other.sum.len()) {
             for c in 0..3 {
                 self.sum[i][c] += other.sum[i][c];
                 self.sum_sq[i][c] += other.sum_sq[i][c];
+                self.sum_w2[i][c] += other.sum_w2[i][c];
+                self.sum_sq_w2[i][c] += other.sum_sq_w2[i][c];
             }
             self.weight[i] += other.weight[i];
+            self.weight_sq[i] += other.weight_sq[i];
+            self.weight_cube[i] += other.weight_cube[i];
         }
     }
 
@@ -156,9 +329,15 @@ impl Film {
             .collect()
     }
 
-    /// Per-pixel, per-channel variance of one sample, E[x²] − E[x]² (what Mitsuba's `moment`
-    /// integrator yields); divide by the sample count for the variance of the pixel mean.
-    pub fn sample_variance(&self) -> Vec<[f32; 3]> {
+    /// Samples per pixel accumulated (total samples over the pixel count).
+    pub fn spp(&self) -> f64 {
+        self.samples as f64 / (self.width * self.height).max(1) as f64
+    }
+
+    /// Per-pixel, per-channel weighted variance of the samples that reached a pixel,
+    /// Σw f² / Σw − (Σw f / Σw)²: the variance of one sample (E[x²] − E[x]², what Mitsuba's
+    /// `moment` integrator yields with the box filter).
+    pub fn weighted_variance(&self) -> Vec<[f32; 3]> {
         (0..self.sum.len())
             .map(|i| {
                 let w = self.weight[i];
@@ -170,6 +349,43 @@ impl Film {
                 } else {
                     [0.0; 3]
                 }
+            })
+            .collect()
+    }
+
+    /// Per-pixel, per-channel "per-sample-equivalent" variance: spp × Var(pixel value), so
+    /// that dividing by spp gives the variance of the pixel value. With the box filter it is
+    /// the unbiased variance of one sample, n/(n − 1) · (E[x²] − E[x]²).
+    ///
+    /// With splatting filters the pixel value is the ratio estimator I = Σw f / Σw, whose
+    /// variance is estimated by the linearisation (delta-method) estimator of ratio
+    /// estimators (Cochran 1977, "Sampling Techniques", §6.4), Σ w² (f − I)² / (Σw)²,
+    /// computed from the sums Σw²f², Σw²f and Σw², and made unbiased for independent
+    /// samples of common variance σ² (E[Σ w²(f − I)²] = σ² (Σw² − 2Σw³/Σw + (Σw²)²/(Σw)²),
+    /// where the target is σ² Σw²/(Σw)²). This estimator weights each sample by w², so at
+    /// edges it does not count the change of the image across the filter's footprint as
+    /// noise. Measured on the gaussian-filtered Cornell box (128², 16 renders of 16 spp):
+    /// the empirical variance of the pixel values over the predicted one is 0.995 summed
+    /// over the 99% of pixel-channels with the smallest variance (0.74 over all: the rest
+    /// are heavy-tailed pixels at the light's edge, where 256 samples underestimate); the
+    /// simpler weighted variance × Σw²/(Σw)² gave 0.56 over all.
+    pub fn sample_variance(&self) -> Vec<[f32; 3]> {
+        let spp = self.spp();
+        (0..self.sum.len())
+            .map(|i| {
+                let (w, w2, w3) = (self.weight[i], self.weight_sq[i], self.weight_cube[i]);
+                if w <= 0.0 {
+                    return [0.0; 3];
+                }
+                let dof = w2 - 2.0 * w3 / w + w2 * w2 / (w * w);
+                if dof <= 1e-12 * w2 {
+                    return [0.0; 3]; // a single sample: no estimate
+                }
+                std::array::from_fn(|c| {
+                    let m = self.sum[i][c] / w;
+                    let ss = self.sum_sq_w2[i][c] - 2.0 * m * self.sum_w2[i][c] + m * m * w2;
+                    (spp * ss.max(0.0) / dof * w2 / (w * w)) as f32
+                })
             })
             .collect()
     }
@@ -191,7 +407,7 @@ mod tests {
         assert_eq!(img[2 + 4], [2.0, 2.0, 2.0]);
         assert_eq!(img[3 + 2 * 4], [7.0; 3]);
         assert_eq!(img[0], [0.0; 3]);
-        let var = film.sample_variance();
+        let var = film.weighted_variance();
         assert_eq!(var[2 + 4], [1.0, 0.0, 1.0]);
     }
 

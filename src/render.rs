@@ -71,8 +71,14 @@ fn render_tile(scene: &Scene, settings: &RenderSettings, x0: usize, y0: usize) -
             for s in 0..settings.spp as u64 {
                 let mut sampler =
                     SampleStream::new(settings.seed, pixel, settings.first_sample + s);
+                // Mitsuba's sampler dimension order: pixel position, then aperture.
                 let pos = Vec2::new(x as f32, y as f32) + sampler.next_2d();
-                let ray = scene.camera.generate_ray(pos * inv_res);
+                let ray = if scene.camera.needs_aperture_sample() {
+                    let u_lens = sampler.next_2d();
+                    scene.camera.generate_ray_lens(pos * inv_res, u_lens)
+                } else {
+                    scene.camera.generate_ray(pos * inv_res)
+                };
                 let l = scene.integrator.li(scene, ray, &mut sampler, &mut stats);
                 if l.is_finite() {
                     tile.add_sample(pos, l);

@@ -124,6 +124,154 @@ impl Distribution1D {
     }
 }
 
+/// Uniform direction in the cone of half-angle θmax around +z, given cos θmax.
+#[inline]
+pub fn square_to_uniform_cone(u: Vec2, cos_theta_max: f32) -> Vec3 {
+    let cos_theta = (1.0 - u.y) + u.y * cos_theta_max;
+    let sin_theta = (1.0 - cos_theta * cos_theta).max(0.0).sqrt();
+    let phi = 2.0 * PI * u.x;
+    Vec3::new(sin_theta * phi.cos(), sin_theta * phi.sin(), cos_theta)
+}
+
+/// Walker's alias method (Walker 1977) with Vose's numerically stable construction (Vose
+/// 1991, "A linear algorithm for generating random numbers with a given distribution"):
+/// O(1) sampling of a discrete distribution.
+#[derive(Clone, Debug, Default)]
+pub struct AliasTable {
+    /// Probability of keeping bin i (else its alias).
+    keep: Vec<f64>,
+    alias: Vec<u32>,
+    pmf: Vec<f64>,
+}
+
+impl AliasTable {
+    /// `None` when no weight is positive or a weight is negative or not finite.
+    pub fn new(weights: &[f64]) -> Option<Self> {
+        let total: f64 = weights.iter().sum();
+        if weights.is_empty()
+            || !(total > 0.0 && total.is_finite())
+            || weights.iter().any(|w| !(w.is_finite() && *w >= 0.0))
+        {
+            return None;
+        }
+        let n = weights.len();
+        let pmf: Vec<f64> = weights.iter().map(|w| w / total).collect();
+        let mut scaled: Vec<f64> = pmf.iter().map(|p| p * n as f64).collect();
+        let mut keep = vec![1.0; n];
+        let mut alias: Vec<u32> = (0..n as u32).collect();
+        let (mut small, mut large): (Vec<usize>, Vec<usize>) =
+            (0..n).partition(|&i| scaled[i] < 1.0);
+        while let (Some(&s), Some(&l)) = (small.last(), large.last()) {
+            small.pop();
+            keep[s] = scaled[s];
+            alias[s] = l as u32;
+            scaled[l] = (scaled[l] + scaled[s]) - 1.0;
+            if scaled[l] < 1.0 {
+                large.pop();
+                small.push(l);
+            }
+        }
+        // What is left (rounding) keeps itself with probability 1.
+        for i in small.into_iter().chain(large) {
+            keep[i] = 1.0;
+        }
+        Some(AliasTable { keep, alias, pmf })
+    }
+
+    pub fn len(&self) -> usize {
+        self.pmf.len()
+    }
+
+    pub fn is_empty(&self) -> bool {
+        self.pmf.is_empty()
+    }
+
+    /// The probability of index `i`.
+    #[inline]
+    pub fn pmf(&self, i: usize) -> f64 {
+        self.pmf[i]
+    }
+
+    /// Picks an index and returns it with `u` remapped to [0, 1) for reuse.
+    #[inline]
+    pub fn sample_reuse(&self, u: f32) -> (usize, f32) {
+        let n = self.pmf.len();
+        let x = u as f64 * n as f64;
+        let i = (x as usize).min(n - 1);
+        let frac = (x - i as f64).clamp(0.0, 1.0);
+        let q = self.keep[i];
+        let (idx, r) = if frac < q {
+            (i, frac / q)
+        } else {
+            (self.alias[i] as usize, (frac - q) / (1.0 - q))
+        };
+        (idx, (r as f32).clamp(0.0, 1.0 - f32::EPSILON / 2.0))
+    }
+}
+
+/// A piecewise-constant density on [0,1]² over an nu × nv grid of cells (pbrt's
+/// `PiecewiseConstant2D`, sampled as a marginal over rows and a conditional within the row).
+#[derive(Clone, Debug)]
+pub struct Distribution2D {
+    nu: usize,
+    nv: usize,
+    /// One per row; `None` for rows whose weights are all zero.
+    conditional: Vec<Option<Distribution1D>>,
+    marginal: Distribution1D,
+}
+
+impl Distribution2D {
+    /// `weights[v * nu + u]`; `None` if no weight is positive or any is invalid.
+    pub fn new(weights: &[f64], nu: usize, nv: usize) -> Option<Self> {
+        if nu == 0 || nv == 0 || weights.len() != nu * nv {
+            return None;
+        }
+        if weights.iter().any(|w| !(w.is_finite() && *w >= 0.0)) {
+            return None;
+        }
+        let conditional: Vec<Option<Distribution1D>> = weights
+            .chunks(nu)
+            .map(|row| Distribution1D::new(row.iter().copied()))
+            .collect();
+        let marginal = Distribution1D::new(
+            conditional
+                .iter()
+                .map(|c| c.as_ref().map_or(0.0, |d| d.total())),
+        )?;
+        Some(Distribution2D {
+            nu,
+            nv,
+            conditional,
+            marginal,
+        })
+    }
+
+    /// A continuous point in [0,1)² and its density w.r.t. area on [0,1]².
+    pub fn sample(&self, u: Vec2) -> (Vec2, f32) {
+        let (j, fy) = self.marginal.sample_reuse(u.y);
+        let Some(row) = &self.conditional[j] else {
+            return (Vec2::ZERO, 0.0);
+        };
+        let (i, fx) = row.sample_reuse(u.x);
+        let p = self.marginal.pmf(j) * row.pmf(i) * (self.nu * self.nv) as f64;
+        let uv = Vec2::new(
+            ((i as f32 + fx) / self.nu as f32).min(1.0 - f32::EPSILON / 2.0),
+            ((j as f32 + fy) / self.nv as f32).min(1.0 - f32::EPSILON / 2.0),
+        );
+        (uv, p as f32)
+    }
+
+    /// The density at `uv` ∈ [0,1]².
+    pub fn pdf(&self, uv: Vec2) -> f32 {
+        let i = ((uv.x * self.nu as f32) as usize).min(self.nu - 1);
+        let j = ((uv.y * self.nv as f32) as usize).min(self.nv - 1);
+        match &self.conditional[j] {
+            Some(row) => (self.marginal.pmf(j) * row.pmf(i) * (self.nu * self.nv) as f64) as f32,
+            None => 0.0,
+        }
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -181,5 +329,50 @@ mod tests {
         assert!((r - 0.5).abs() < 1e-6);
         assert!(Distribution1D::new([0.0, 0.0]).is_none());
         assert!(Distribution1D::new([f64::NAN]).is_none());
+    }
+
+    #[test]
+    fn alias_table_matches_weights() {
+        let w = [1.0, 0.0, 3.0, 0.5, 5.5];
+        let t = AliasTable::new(&w).unwrap();
+        // Integrate the sampled index over a fine uniform grid: exact frequencies.
+        let n = 100_000;
+        let mut counts = [0usize; 5];
+        for k in 0..n {
+            let (i, r) = t.sample_reuse((k as f32 + 0.5) / n as f32);
+            assert!((0.0..1.0).contains(&r));
+            counts[i] += 1;
+        }
+        for i in 0..5 {
+            assert!(
+                (counts[i] as f64 / n as f64 - w[i] / 10.0).abs() < 1e-3,
+                "{counts:?}"
+            );
+            assert!((t.pmf(i) - w[i] / 10.0).abs() < 1e-12);
+        }
+        assert!(AliasTable::new(&[0.0]).is_none());
+        assert!(AliasTable::new(&[1.0, -1.0, 2.0]).is_none());
+    }
+
+    #[test]
+    fn distribution_2d_density_integrates_to_one_and_matches_samples() {
+        let w = [0.0, 1.0, 2.0, 0.0, 0.0, 0.0, 3.0, 1.0, 1.0];
+        let d = Distribution2D::new(&w, 3, 3).unwrap();
+        let mut integral = 0.0;
+        for j in 0..3 {
+            for i in 0..3 {
+                integral +=
+                    d.pdf(Vec2::new((i as f32 + 0.5) / 3.0, (j as f32 + 0.5) / 3.0)) as f64 / 9.0;
+            }
+        }
+        assert!((integral - 1.0).abs() < 1e-6);
+        for k in 0..200 {
+            let u = Vec2::new((k as f32 * 0.618_034).fract(), (k as f32 + 0.5) / 200.0);
+            let (uv, pdf) = d.sample(u);
+            assert!(
+                pdf > 0.0 && (pdf - d.pdf(uv)).abs() < 1e-5 * pdf,
+                "{uv} {pdf}"
+            );
+        }
     }
 }

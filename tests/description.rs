@@ -451,15 +451,19 @@ fn sensor_errors() {
         "to_world",
         &["parameter 'to_world' of <sensor type=\"perspective\"> must be a transform, not float"],
     );
-    let xml = scene(
+    // Without a film: Mitsuba's default hdrfilm, 768x576 with the gaussian filter.
+    let d = desc(&scene(
         r#"<sensor type="perspective">
     <float name="fov" value="30"/>
 </sensor>"#,
-    );
-    assert_error(
-        &xml,
-        "<sensor",
-        &["<sensor type=\"perspective\"> has no <film>", "gaussian"],
+    ));
+    assert_eq!(
+        (
+            d.sensor.film.width,
+            d.sensor.film.height,
+            d.sensor.film.rfilter
+        ),
+        (768, 576, FilterDesc::Gaussian { stddev: 0.5 })
     );
     let xml = scene(
         r#"<sensor type="perspective">
@@ -569,8 +573,8 @@ fn component_and_pixel_formats() {
 }
 
 #[test]
-fn only_the_box_filter_is_accepted() {
-    for filter in ["gaussian", "tent", "lanczos", "mitchell"] {
+fn box_tent_and_gaussian_filters_are_accepted() {
+    for filter in ["lanczos", "mitchell"] {
         let xml = sensor_scene(
             r#"<float name="fov" value="30"/>"#,
             "",
@@ -581,15 +585,37 @@ fn only_the_box_filter_is_accepted() {
             "<rfilter",
             &[
                 &format!("unsupported plugin <rfilter type=\"{filter}\">"),
-                "box",
+                "box, tent and gaussian",
             ],
         );
     }
-    let xml = sensor_scene(r#"<float name="fov" value="30"/>"#, "", "");
-    assert_error(
-        &xml,
-        "<film",
-        &["<film type=\"hdrfilm\"> has no <rfilter>", "gaussian"],
+    let film = |children: &str| {
+        desc(&sensor_scene(
+            r#"<float name="fov" value="30"/>"#,
+            "",
+            children,
+        ))
+        .sensor
+        .film
+        .rfilter
+    };
+    // Mitsuba's default filter: gaussian with stddev 0.5.
+    assert_eq!(film(""), FilterDesc::Gaussian { stddev: 0.5 });
+    assert_eq!(
+        film(r#"<rfilter type="gaussian"/>"#),
+        FilterDesc::Gaussian { stddev: 0.5 }
+    );
+    assert_eq!(
+        film(r#"<rfilter type="gaussian"><float name="stddev" value="0.25"/></rfilter>"#),
+        FilterDesc::Gaussian { stddev: 0.25 }
+    );
+    assert_eq!(
+        film(r#"<rfilter type="tent"/>"#),
+        FilterDesc::Tent { radius: 1.0 }
+    );
+    assert_eq!(
+        film(r#"<rfilter type="tent"><float name="radius" value="1.5"/></rfilter>"#),
+        FilterDesc::Tent { radius: 1.5 }
     );
     let xml = sensor_scene(
         r#"<float name="fov" value="30"/>"#,
@@ -1409,17 +1435,17 @@ fn area_emitter_errors() {
 
 #[test]
 fn unknown_emitters_fail() {
-    // A point light at the top level is outside the supported subset.
-    let xml = with_sensor(
-        r#"<emitter type="point">
-    <point name="position" value="0, 1, 0"/>
-</emitter>"#,
+    // An emitter type outside the supported subset.
+    let xml = with_sensor(r#"<emitter type="projector"/>"#);
+    assert_error(
+        &xml,
+        "<emitter",
+        &["unsupported plugin <emitter type=\"projector\">"],
     );
-    assert_error(&xml, "<emitter", &["<emitter type=\"point\">"]);
-    // So is an environment light.
-    let xml = with_sensor(r#"<emitter type="constant"/>"#);
-    assert_error(&xml, "<emitter", &["<emitter type=\"constant\">"]);
-    // And a non-area emitter attached to a shape.
+    // An area emitter must sit in a shape.
+    let xml = with_sensor(r#"<emitter type="area"><float name="radiance" value="1"/></emitter>"#);
+    assert_error(&xml, "<emitter", &["must be nested in a <shape>"]);
+    // A non-area emitter attached to a shape.
     let xml = with_sensor(
         r#"<shape type="sphere">
     <emitter type="point"/>
@@ -1430,6 +1456,53 @@ fn unknown_emitters_fail() {
         "<emitter",
         &["unsupported plugin <emitter type=\"point\">"],
     );
+}
+
+#[test]
+fn scene_level_emitters_and_their_defaults() {
+    let d = desc(&with_sensor(
+        r#"<emitter type="point"><point name="position" value="0, 1, 2"/><rgb name="intensity" value="3"/></emitter>
+<emitter type="spot"/>
+<emitter type="directional"><vector name="direction" value="0, -2, 0"/></emitter>
+<emitter type="constant"><float name="radiance" value="0.5"/></emitter>"#,
+    ));
+    assert_eq!(
+        d.emitters,
+        vec![
+            EmitterDesc::Point {
+                position: DVec3::new(0.0, 1.0, 2.0),
+                intensity: DVec3::splat(3.0)
+            },
+            EmitterDesc::Spot {
+                to_world: DMat4::IDENTITY,
+                intensity: DVec3::ONE,
+                cutoff_angle: 20.0,
+                beam_width: 15.0
+            },
+            EmitterDesc::Directional {
+                direction: DVec3::new(0.0, -1.0, 0.0),
+                irradiance: DVec3::ONE
+            },
+            EmitterDesc::Constant {
+                radiance: DVec3::splat(0.5)
+            },
+        ]
+    );
+    // Two environment emitters are refused, as in Mitsuba.
+    let xml = with_sensor(
+        r#"<emitter type="constant"/>
+<emitter type="envmap"><string name="filename" value="sky.exr"/></emitter>"#,
+    );
+    assert_error(
+        &xml,
+        "<emitter type=\"envmap\"",
+        &["at most one environment emitter"],
+    );
+    let xml = with_sensor(r#"<emitter type="envmap"/>"#);
+    assert_error(&xml, "<emitter", &["needs a 'filename'"]);
+    let xml =
+        with_sensor(r#"<emitter type="spot"><float name="beam_width" value="30"/></emitter>"#);
+    assert_error(&xml, "<emitter", &["beam_width"]);
 }
 
 // ---------------------------------------------------------------------------------------
@@ -1620,4 +1693,37 @@ fn build_warns_about_missing_emitters() {
     assert_eq!(scene.emitters.len(), 1);
     assert_eq!((scene.width, scene.height), (32, 24));
     assert_eq!((scene.sample_count, scene.seed), (4, 0));
+}
+
+#[test]
+fn thinlens_sensor_parameters() {
+    let lens = |props: &str| {
+        parse(&scene(&format!(
+            r#"<sensor type="thinlens">
+    <float name="fov" value="30"/>
+    <float name="far_clip" value="50"/>
+    {props}
+</sensor>"#
+        )))
+        .map(|d| d.sensor.thin_lens)
+    };
+    assert_eq!(
+        lens(r#"<float name="aperture_radius" value="0.1"/>"#).unwrap(),
+        Some((0.1, 50.0)),
+        "focus_distance defaults to far_clip, as in Mitsuba"
+    );
+    assert_eq!(
+        lens(
+            r#"<float name="aperture_radius" value="0"/><float name="focus_distance" value="2"/>"#
+        )
+        .unwrap(),
+        Some((0.0, 2.0))
+    );
+    let e = lens("").unwrap_err().to_string();
+    assert!(e.contains("needs an 'aperture_radius'"), "{e}");
+    let e = lens(r#"<float name="aperture_radius" value="-1"/>"#)
+        .unwrap_err()
+        .to_string();
+    assert!(e.contains("aperture_radius"), "{e}");
+    assert_eq!(desc(&with_sensor("")).sensor.thin_lens, None);
 }

@@ -1,17 +1,43 @@
 //! Mitsuba's `area` emitter: constant radiance leaving one side of a shape, the side its
 //! (shading) normal points to. Sampled by choosing a point uniformly by area on the shape and
-//! converting the area density to solid angle, p_ω = p_A r² / |cos θ_light| (Veach 1997, eq. 8.10).
+//! converting the area density to solid angle, p_ω = p_A r² / |cos θ_light| (Veach 1997, eq.
+//! 8.10) — except on spheres seen from outside, which are sampled uniformly within the cone
+//! of directions they subtend, p_ω = 1 / (2π (1 − cos θmax)) with sin θmax = r / |c − p|
+//! (Shirley, Wang and Zimmerman 1996, "Monte Carlo techniques for direct lighting
+//! calculations"; pbrt-v4 §6.2.4), as Mitsuba does.
 
 use super::DirectionSample;
 use crate::bsdf::Spectrum;
-use crate::shape::{Shape, SurfaceInteraction};
-use glam::{Vec2, Vec3};
+use crate::geometry::Frame;
+use crate::sampling::square_to_uniform_cone;
+use crate::shape::{Shape, ShapeGeometry, Sphere, SurfaceInteraction};
+use glam::{DVec3, Vec2, Vec3};
 
 #[derive(Clone, Debug)]
 pub struct AreaEmitter {
     /// Index of the shape this emitter is attached to.
     pub shape: u32,
     pub radiance: Spectrum,
+}
+
+/// The cone a sphere subtends from `p_ref`: (unit axis towards the centre, distance to the
+/// centre, cos θmax, 1 − cos θmax), or `None` when `p_ref` is inside or on the sphere. Points
+/// within a relative 5e-5 of the surface count as on it (area sampling, valid on both sides):
+/// a path vertex on the sphere itself lies on either side by rounding, and from just outside
+/// the cone's near intersection would be the vertex itself.
+fn sphere_cone(s: &Sphere, p_ref: Vec3) -> Option<(DVec3, f64, f64, f64)> {
+    let v = s.center - p_ref.as_dvec3();
+    let dc2 = v.length_squared();
+    let r2 = s.radius * s.radius;
+    if dc2 <= r2 * (1.0 + 1e-4) {
+        return None;
+    }
+    let dc = dc2.sqrt();
+    let sin2 = r2 / dc2;
+    let cos_max = (1.0 - sin2).max(0.0).sqrt();
+    // 1 − cos θmax without cancellation for small spheres.
+    let one_minus = sin2 / (1.0 + cos_max);
+    Some((v / dc, dc, cos_max, one_minus))
 }
 
 impl AreaEmitter {
@@ -32,7 +58,13 @@ impl AreaEmitter {
         u: Vec2,
         shapes: &[Shape],
     ) -> Option<DirectionSample> {
-        let ps = shapes[self.shape as usize].geometry.sample_position(u)?;
+        let geometry = &shapes[self.shape as usize].geometry;
+        if let ShapeGeometry::Sphere(s) = geometry {
+            if let Some(cone) = sphere_cone(s, p_ref) {
+                return self.sample_sphere_cone(s, p_ref, u, cone);
+            }
+        }
+        let ps = geometry.sample_position(u)?;
         let v = ps.p - p_ref;
         let dist2 = v.length_squared();
         if dist2 == 0.0 || !dist2.is_finite() {
@@ -53,13 +85,64 @@ impl AreaEmitter {
             dist,
             pdf,
             radiance: self.radiance,
+            delta: false,
+        })
+    }
+
+    fn sample_sphere_cone(
+        &self,
+        s: &Sphere,
+        p_ref: Vec3,
+        u: Vec2,
+        (axis, dc, cos_max, one_minus): (DVec3, f64, f64, f64),
+    ) -> Option<DirectionSample> {
+        let local = square_to_uniform_cone(u, cos_max as f32).as_dvec3();
+        let frame = Frame::from_normal(axis.as_vec3());
+        let d = (frame.s.as_dvec3() * local.x
+            + frame.t.as_dvec3() * local.y
+            + frame.n.as_dvec3() * local.z)
+            .normalize();
+        // First intersection of the ray p_ref + t d with the sphere (the near side), in f64;
+        // directions at the rim graze it (the discriminant is clamped to 0 there).
+        let cos_t = d.dot(axis);
+        let disc = (s.radius * s.radius - dc * dc * (1.0 - cos_t * cos_t)).max(0.0);
+        let t = (dc * cos_t - disc.sqrt()).max(0.0);
+        let hit = p_ref.as_dvec3() + d * t;
+        let ps = s.position_at(hit - s.center);
+        let v = ps.p - p_ref;
+        let dist = v.length();
+        if !(dist > 0.0 && dist.is_finite()) {
+            return None;
+        }
+        let d = v / dist;
+        let radiance = if ps.n.dot(-d) > 0.0 {
+            self.radiance
+        } else {
+            Spectrum::ZERO // a sphere emitting inwards, seen from outside
+        };
+        let pdf = (1.0 / (2.0 * std::f64::consts::PI * one_minus)) as f32;
+        (pdf.is_finite() && pdf > 0.0).then_some(DirectionSample {
+            p: ps.p,
+            p_error: ps.p_error,
+            n: ps.n,
+            d,
+            dist,
+            pdf,
+            radiance,
+            delta: false,
         })
     }
 
     /// Solid-angle density with which `sample_direction` from `p_ref` yields the point of
     /// `si` (the same shape hit by a ray from `p_ref`).
     pub fn pdf_direction(&self, p_ref: Vec3, si: &SurfaceInteraction, shapes: &[Shape]) -> f32 {
-        let area = shapes[self.shape as usize].geometry.area();
+        let geometry = &shapes[self.shape as usize].geometry;
+        if let ShapeGeometry::Sphere(s) = geometry {
+            if let Some((_, _, _, one_minus)) = sphere_cone(s, p_ref) {
+                return (1.0 / (2.0 * std::f64::consts::PI * one_minus)) as f32;
+            }
+        }
+        let area = geometry.area();
         if area <= 0.0 {
             return 0.0;
         }

@@ -1,9 +1,21 @@
 //! Emitters. Sampling returns solid-angle densities so that next-event estimation and the MIS
-//! weight of a BSDF-sampled hit use one and the same pdf.
+//! weight of a BSDF-sampled hit use one and the same pdf. Delta emitters (point, spot,
+//! directional) return the probability 1 in place of a density and are never hit by rays;
+//! environment emitters (constant, envmap) are seen by rays that leave the scene.
 
 pub mod area;
+pub mod constant;
+pub mod directional;
+pub mod envmap;
+pub mod point;
+pub mod spot;
 
 pub use area::AreaEmitter;
+pub use constant::ConstantEmitter;
+pub use directional::DirectionalEmitter;
+pub use envmap::EnvMapEmitter;
+pub use point::PointEmitter;
+pub use spot::SpotEmitter;
 
 use crate::bsdf::Spectrum;
 use crate::shape::Shape;
@@ -12,27 +24,45 @@ use glam::{Vec2, Vec3};
 /// A direction towards a sampled point on an emitter, as seen from a reference point.
 #[derive(Clone, Copy, Debug)]
 pub struct DirectionSample {
-    /// The sampled point on the emitter, its error bound and unit normal.
+    /// The sampled point on the emitter, its error bound and unit normal (zero for delta
+    /// and environment emitters; for those at infinity `p` is meaningless).
     pub p: Vec3,
     pub p_error: Vec3,
     pub n: Vec3,
     /// Unit direction from the reference point to `p`.
     pub d: Vec3,
-    /// Distance from the reference point to `p`.
+    /// Distance from the reference point to `p` (∞ for emitters at infinity).
     pub dist: f32,
     /// Solid-angle density (including the probability of choosing this emitter once the
-    /// scene has set it).
+    /// scene has set it); for delta emitters the discrete probability instead.
     pub pdf: f32,
-    /// Emitted radiance towards the reference point.
+    /// Emitted radiance towards the reference point; for delta emitters the incident
+    /// radiance's integral, intensity / dist² (point, spot) or irradiance (directional).
     pub radiance: Spectrum,
+    /// The direction was the only possible one (no MIS: BSDF sampling cannot find it).
+    pub delta: bool,
+}
+
+impl DirectionSample {
+    /// The emitter lies at infinity (directional, environment): shadow rays go to ∞.
+    pub fn is_infinite(&self) -> bool {
+        self.dist.is_infinite()
+    }
 }
 
 #[derive(Clone, Debug)]
 pub enum Emitter {
     Area(AreaEmitter),
+    Point(PointEmitter),
+    Spot(SpotEmitter),
+    Directional(DirectionalEmitter),
+    Constant(ConstantEmitter),
+    EnvMap(EnvMapEmitter),
 }
 
 impl Emitter {
+    /// Samples a direction from `p_ref` towards the emitter. The pdf does not include the
+    /// probability of choosing this emitter.
     pub fn sample_direction(
         &self,
         p_ref: Vec3,
@@ -41,6 +71,57 @@ impl Emitter {
     ) -> Option<DirectionSample> {
         match self {
             Emitter::Area(e) => e.sample_direction(p_ref, u, shapes),
+            Emitter::Point(e) => e.sample_direction(p_ref),
+            Emitter::Spot(e) => e.sample_direction(p_ref),
+            Emitter::Directional(e) => Some(e.sample_direction()),
+            Emitter::Constant(e) => e.sample_direction(u),
+            Emitter::EnvMap(e) => e.sample_direction(u),
+        }
+    }
+
+    /// An environment emitter: seen by rays that leave the scene.
+    pub fn is_environment(&self) -> bool {
+        matches!(self, Emitter::Constant(_) | Emitter::EnvMap(_))
+    }
+
+    /// Radiance arriving from infinity along −`d` (an escaping ray with direction `d`).
+    pub fn eval_environment(&self, d: Vec3) -> Spectrum {
+        match self {
+            Emitter::Constant(e) => e.radiance,
+            Emitter::EnvMap(e) => e.eval(d),
+            _ => Spectrum::ZERO,
+        }
+    }
+
+    /// Solid-angle density with which `sample_direction` yields the escaping direction `d`.
+    pub fn pdf_environment(&self, d: Vec3) -> f32 {
+        match self {
+            Emitter::Constant(_) => constant::UNIFORM_SPHERE_PDF,
+            Emitter::EnvMap(e) => e.pdf_direction(d),
+            _ => 0.0,
+        }
+    }
+
+    /// Estimated emitted power (mean over the RGB channels), for choosing emitters in
+    /// proportion to it. Emitters at infinity count what falls on the scene's bounding
+    /// sphere of radius `scene_radius`:
+    /// - area: π · A · L (one-sided Lambertian emitter)
+    /// - point: 4π · I
+    /// - spot: 2π (1 − cos θ) · I with θ halfway between beam_width and cutoff_angle
+    /// - directional: π r² · E
+    /// - constant and envmap: π · π r² · mean L (irradiance π L over the disk π r²)
+    pub fn power(&self, shapes: &[Shape], scene_radius: f64) -> f64 {
+        let mean = |s: Spectrum| (s.x as f64 + s.y as f64 + s.z as f64) / 3.0;
+        let disk = std::f64::consts::PI * scene_radius * scene_radius;
+        match self {
+            Emitter::Area(e) => {
+                std::f64::consts::PI * shapes[e.shape as usize].geometry.area() * mean(e.radiance)
+            }
+            Emitter::Point(e) => 4.0 * std::f64::consts::PI * mean(e.intensity),
+            Emitter::Spot(e) => e.solid_angle() * mean(e.intensity),
+            Emitter::Directional(e) => disk * mean(e.irradiance),
+            Emitter::Constant(e) => std::f64::consts::PI * disk * mean(e.radiance),
+            Emitter::EnvMap(e) => std::f64::consts::PI * disk * e.mean_radiance(),
         }
     }
 }

@@ -47,6 +47,20 @@ impl PathIntegrator {
         loop {
             stats.rays += 1;
             let Some(si) = scene.intersect(&ray) else {
+                // The ray leaves the scene: the environment's emission, MIS-weighted against
+                // emitter sampling (camera rays and delta bounces: weight 1). With
+                // hide_emitters, camera rays that miss see black, as in Mitsuba.
+                if scene.environment.is_some() && !(depth == 0 && self.hide_emitters) {
+                    let le = scene.eval_environment(ray.d);
+                    if le != Vec3::ZERO {
+                        let w = if prev_delta {
+                            1.0
+                        } else {
+                            mis_power(prev_bsdf_pdf, scene.pdf_environment(ray.d))
+                        };
+                        result += throughput * le * w;
+                    }
+                }
                 break;
             };
             let wi_world = -ray.d.normalize();
@@ -57,8 +71,10 @@ impl PathIntegrator {
                     ray = Scene::spawn_ray(&si, ray.d);
                     continue;
                 }
-                let crate::emitter::Emitter::Area(area) = &scene.emitters[e as usize];
-                let le = area.eval(&si, wi_world);
+                let le = match &scene.emitters[e as usize] {
+                    crate::emitter::Emitter::Area(area) => area.eval(&si, wi_world),
+                    _ => Vec3::ZERO,
+                };
                 if le != Vec3::ZERO {
                     let w = if prev_delta {
                         1.0
@@ -84,7 +100,12 @@ impl PathIntegrator {
                     if f != Vec3::ZERO {
                         stats.rays += 1;
                         if !scene.occluded(&Scene::shadow_ray(&si, &ds)) {
-                            let w = mis_power(ds.pdf, bsdf.pdf(wi, wo));
+                            // Delta emitters cannot be found by BSDF sampling: no MIS.
+                            let w = if ds.delta {
+                                1.0
+                            } else {
+                                mis_power(ds.pdf, bsdf.pdf(wi, wo))
+                            };
                             result += throughput * f * ds.radiance * (w / ds.pdf);
                         }
                     }

@@ -7,14 +7,18 @@ use super::description::{
 use super::Scene;
 use crate::accel::Accel;
 use crate::bsdf::{Bsdf, Diffuse, TwoSided};
-use crate::camera::{fov_x_degrees, PerspectiveCamera};
-use crate::emitter::{AreaEmitter, Emitter};
+use crate::camera::{fov_x_degrees, PerspectiveCamera, ThinLens};
+use crate::emitter::{
+    AreaEmitter, ConstantEmitter, DirectionalEmitter, Emitter, EnvMapEmitter, PointEmitter,
+    SpotEmitter,
+};
 use crate::error::{Error, Result};
 use crate::film::Filter;
 use crate::integrator::{Integrator, PathIntegrator};
+use crate::sampling::AliasTable;
 use crate::shape::mesh::angle_weighted_normals;
 use crate::shape::{Disk, Mesh, Shape, ShapeGeometry, Sphere};
-use glam::{DMat3, DMat4, DVec3, Vec2};
+use glam::{DMat3, DMat4, DVec3, Vec2, Vec3};
 use std::path::Path;
 
 /// Builds the scene in camera-relative coordinates: every transform is composed in f64 with
@@ -26,13 +30,19 @@ pub fn build(desc: &SceneDescription) -> Result<Scene> {
     let shift = DMat4::from_translation(-s.to_world.transform_point3(DVec3::ZERO));
     let (width, height) = (s.film.width as usize, s.film.height as usize);
     let aspect = width as f64 / height as f64;
-    let camera = PerspectiveCamera::new(
+    let mut camera = PerspectiveCamera::new(
         shift * s.to_world,
         fov_x_degrees(s.fov, s.fov_axis, aspect),
         aspect,
         s.near_clip,
         s.far_clip,
     );
+    if let Some((aperture_radius, focus_distance)) = s.thin_lens {
+        camera = camera.with_thin_lens(ThinLens {
+            aperture_radius,
+            focus_distance,
+        });
+    }
     let mut warnings = Vec::new();
     let mut shapes = Vec::new();
     let mut bsdfs = Vec::new();
@@ -41,24 +51,44 @@ pub fn build(desc: &SceneDescription) -> Result<Scene> {
         let geometry = shape_geometry(sd, shift, &mut warnings)?;
         let shape_index = shapes.len() as u32;
         bsdfs.push(bsdf(&sd.bsdf));
-        let emitter = sd.emitter.as_ref().map(|e| {
-            emitters.push(match e {
-                EmitterDesc::Area { radiance } => Emitter::Area(AreaEmitter {
+        let emitter = match &sd.emitter {
+            None => None,
+            Some(EmitterDesc::Area { radiance }) => {
+                emitters.push(Emitter::Area(AreaEmitter {
                     shape: shape_index,
                     radiance: radiance.as_vec3(),
-                }),
-            });
-            (emitters.len() - 1) as u32
-        });
+                }));
+                Some((emitters.len() - 1) as u32)
+            }
+            Some(_) => {
+                return Err(Error::scene(
+                    &sd.location,
+                    "only an area emitter can be attached to a shape",
+                ))
+            }
+        };
         shapes.push(Shape {
             geometry,
             bsdf: (bsdfs.len() - 1) as u32,
             emitter,
         });
     }
+    let mut environment = None;
+    for e in &desc.emitters {
+        if matches!(e, EmitterDesc::Constant { .. } | EmitterDesc::EnvMap { .. }) {
+            environment = Some(emitters.len() as u32);
+        }
+        emitters.push(scene_emitter(e, shift)?);
+    }
     if emitters.is_empty() {
         warnings.push("the scene has no emitter: the image will be black".into());
     }
+    let bounding_sphere = bounding_sphere(&shapes);
+    let powers: Vec<f64> = emitters
+        .iter()
+        .map(|e| e.power(&shapes, bounding_sphere.1 as f64))
+        .collect();
+    let emitter_selection = AliasTable::new(&powers);
     let accel = Accel::build(&shapes);
     let integrator = match desc.integrator {
         IntegratorDesc::Path {
@@ -85,11 +115,123 @@ pub fn build(desc: &SceneDescription) -> Result<Scene> {
         height,
         filter: match s.film.rfilter {
             FilterDesc::Box => Filter::Box,
+            FilterDesc::Tent { radius } => Filter::Tent { radius },
+            FilterDesc::Gaussian { stddev } => Filter::Gaussian { stddev },
         },
         sample_count: s.sampler.sample_count,
         seed: s.sampler.seed,
         integrator,
         warnings,
+        emitter_selection,
+        environment,
+        bounding_sphere,
+    })
+}
+
+/// A sphere around every shape (centre of the bounding box, half its diagonal); radius 1
+/// around the origin for a scene without shapes.
+fn bounding_sphere(shapes: &[Shape]) -> (Vec3, f32) {
+    let (mut lo, mut hi) = (DVec3::splat(f64::INFINITY), DVec3::splat(f64::NEG_INFINITY));
+    let mut add = |p: DVec3| {
+        lo = lo.min(p);
+        hi = hi.max(p);
+    };
+    for s in shapes {
+        match &s.geometry {
+            ShapeGeometry::Mesh(m) => m.positions.iter().for_each(|p| add(p.as_dvec3())),
+            ShapeGeometry::Sphere(sp) => {
+                add(sp.center - DVec3::splat(sp.radius));
+                add(sp.center + DVec3::splat(sp.radius));
+            }
+            ShapeGeometry::Disk(d) => d.corners().iter().for_each(|p| add(p.as_dvec3())),
+        }
+    }
+    if !(lo.is_finite() && hi.is_finite()) {
+        return (Vec3::ZERO, 1.0);
+    }
+    let c = (lo + hi) * 0.5;
+    (c.as_vec3(), ((hi - lo).length() * 0.5).max(1e-6) as f32)
+}
+
+/// An emitter declared at the scene level; `shift` maps world space to the camera-relative
+/// space the scene is built in (positions move, directions do not).
+fn scene_emitter(e: &EmitterDesc, shift: DMat4) -> Result<Emitter> {
+    Ok(match e {
+        EmitterDesc::Area { .. } => {
+            return Err(Error::Invalid(
+                "an area emitter must be attached to a shape".into(),
+            ))
+        }
+        EmitterDesc::Point {
+            position,
+            intensity,
+        } => Emitter::Point(PointEmitter {
+            position: shift.transform_point3(*position).as_vec3(),
+            intensity: intensity.as_vec3(),
+        }),
+        EmitterDesc::Spot {
+            to_world,
+            intensity,
+            cutoff_angle,
+            beam_width,
+        } => Emitter::Spot(SpotEmitter {
+            position: (shift * *to_world).transform_point3(DVec3::ZERO).as_vec3(),
+            axis: to_world
+                .transform_vector3(DVec3::Z)
+                .try_normalize()
+                .unwrap_or(DVec3::Z)
+                .as_vec3(),
+            intensity: intensity.as_vec3(),
+            cutoff_angle: cutoff_angle.to_radians() as f32,
+            beam_width: beam_width.to_radians() as f32,
+        }),
+        EmitterDesc::Directional {
+            direction,
+            irradiance,
+        } => Emitter::Directional(DirectionalEmitter {
+            direction: direction.as_vec3(),
+            irradiance: irradiance.as_vec3(),
+        }),
+        EmitterDesc::Constant { radiance } => Emitter::Constant(ConstantEmitter {
+            radiance: radiance.as_vec3(),
+        }),
+        EmitterDesc::EnvMap {
+            filename,
+            scale,
+            to_world,
+            location,
+        } => {
+            let img = crate::io::exr::read(filename)?;
+            if img
+                .rgb
+                .iter()
+                .any(|t| t.iter().any(|x| !x.is_finite() || *x < 0.0))
+            {
+                return Err(Error::scene(
+                    location,
+                    format!(
+                        "{}: the environment map has negative or non-finite texels",
+                        filename.display()
+                    ),
+                ));
+            }
+            let m = DMat3::from_mat4(*to_world);
+            // Keep only the rotation (Mitsuba's to_world for an envmap is a rotation).
+            let axes = [m.x_axis, m.y_axis, m.z_axis].map(|a| a.normalize_or_zero());
+            let rot = DMat3::from_cols(axes[0], axes[1], axes[2]).as_mat3();
+            Emitter::EnvMap(
+                EnvMapEmitter::new(img.width, img.height, &img.rgb, *scale as f32, rot)
+                    .ok_or_else(|| {
+                        Error::scene(
+                            location,
+                            format!(
+                                "{}: an environment map needs at least 1x2 pixels",
+                                filename.display()
+                            ),
+                        )
+                    })?,
+            )
+        }
     })
 }
 

@@ -16,6 +16,8 @@ pub struct SceneDescription {
     pub integrator: IntegratorDesc,
     pub sensor: SensorDesc,
     pub shapes: Vec<ShapeDesc>,
+    /// Emitters declared at the scene level (point, spot, directional, constant, envmap).
+    pub emitters: Vec<EmitterDesc>,
 }
 
 /// Mitsuba's `path` integrator. `max_depth` −1 means unbounded.
@@ -38,6 +40,8 @@ pub struct SensorDesc {
     pub film: FilmDesc,
     pub sampler: SamplerDesc,
     pub location: Location,
+    /// `thinlens`: (aperture_radius, focus_distance); `None` for `perspective`.
+    pub thin_lens: Option<(f64, f64)>,
 }
 
 #[derive(Clone, Debug, PartialEq)]
@@ -50,6 +54,8 @@ pub struct FilmDesc {
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub enum FilterDesc {
     Box,
+    Tent { radius: f64 },
+    Gaussian { stddev: f64 },
 }
 
 #[derive(Clone, Debug, PartialEq)]
@@ -106,7 +112,34 @@ impl BsdfDesc {
 
 #[derive(Clone, Debug, PartialEq)]
 pub enum EmitterDesc {
-    Area { radiance: DVec3 },
+    Area {
+        radiance: DVec3,
+    },
+    Point {
+        position: DVec3,
+        intensity: DVec3,
+    },
+    Spot {
+        to_world: DMat4,
+        intensity: DVec3,
+        /// Degrees.
+        cutoff_angle: f64,
+        beam_width: f64,
+    },
+    Directional {
+        /// Unit direction in which the light travels (world).
+        direction: DVec3,
+        irradiance: DVec3,
+    },
+    Constant {
+        radiance: DVec3,
+    },
+    EnvMap {
+        filename: PathBuf,
+        scale: f64,
+        to_world: DMat4,
+        location: Location,
+    },
 }
 
 /// Largest image side accepted; larger ones are refused before allocating anything.
@@ -279,6 +312,7 @@ pub fn from_xml(root: &Object) -> Result<SceneDescription> {
     let mut integrator = None;
     let mut sensor = None;
     let mut shapes = Vec::new();
+    let mut emitters = Vec::new();
     for Child { object: o, .. } in &root.children {
         match o.tag.as_str() {
             "integrator" => {
@@ -300,6 +334,19 @@ pub fn from_xml(root: &Object) -> Result<SceneDescription> {
                 sensor = Some(sensor_desc(o)?);
             }
             "shape" => shapes.push(shape_desc(o)?),
+            "emitter" => {
+                let e = scene_emitter_desc(o)?;
+                let is_env = |e: &EmitterDesc| {
+                    matches!(e, EmitterDesc::Constant { .. } | EmitterDesc::EnvMap { .. })
+                };
+                if is_env(&e) && emitters.iter().any(is_env) {
+                    return Err(Error::scene(
+                        &o.location,
+                        "a scene has at most one environment emitter (constant or envmap)",
+                    ));
+                }
+                emitters.push(e);
+            }
             // Declared for later <ref>s; check them now so that errors surface even when
             // unreferenced, as Mitsuba instantiates them too.
             "bsdf" => {
@@ -317,6 +364,7 @@ pub fn from_xml(root: &Object) -> Result<SceneDescription> {
         }),
         sensor,
         shapes,
+        emitters,
     })
 }
 
@@ -360,10 +408,15 @@ fn integrator_desc(o: &Object) -> Result<IntegratorDesc> {
 }
 
 fn sensor_desc(o: &Object) -> Result<SensorDesc> {
-    if o.plugin != "perspective" {
+    if o.plugin != "perspective" && o.plugin != "thinlens" {
         return Err(unsupported_plugin(o));
     }
     let mut p = Props::new(o);
+    let aperture_radius = if o.plugin == "thinlens" {
+        Some(p.float("aperture_radius", f64::NAN)?)
+    } else {
+        None
+    };
     let fov = p.float("fov", f64::NAN)?;
     let fov_axis = match p.string("fov_axis")? {
         None => FovAxis::X,
@@ -383,8 +436,9 @@ fn sensor_desc(o: &Object) -> Result<SensorDesc> {
     };
     let near_clip = p.float("near_clip", 0.01)?;
     let far_clip = p.float("far_clip", 1e4)?;
-    // Mitsuba's projective cameras accept focus_distance; a pinhole has no use for it.
-    p.float("focus_distance", 0.0)?;
+    // Mitsuba's projective cameras accept focus_distance (default: far_clip); a pinhole has
+    // no use for it.
+    let focus_distance = p.float("focus_distance", far_clip)?;
     let to_world = p.transform("to_world")?;
     p.finish()?;
     if fov.is_nan() {
@@ -404,6 +458,24 @@ fn sensor_desc(o: &Object) -> Result<SensorDesc> {
     }
     positive(near_clip, "near_clip", o)?;
     positive(far_clip, "far_clip", o)?;
+    let thin_lens = match aperture_radius {
+        None => None,
+        Some(a) if a.is_nan() => {
+            return Err(Error::scene(
+                &o.location,
+                format!("{} needs an 'aperture_radius'", describe(o)),
+            ))
+        }
+        Some(a) => {
+            if !(a >= 0.0 && a.is_finite()) {
+                return Err(Error::scene(
+                    &o.location,
+                    format!("aperture_radius of {} must be >= 0, got {a}", describe(o)),
+                ));
+            }
+            Some((a, positive(focus_distance, "focus_distance", o)?))
+        }
+    };
     if near_clip >= far_clip {
         return Err(Error::scene(
             &o.location,
@@ -425,25 +497,18 @@ fn sensor_desc(o: &Object) -> Result<SensorDesc> {
         near_clip,
         far_clip,
         to_world,
-        film: match film {
-            Some(f) => f,
-            None => {
-                return Err(Error::scene(
-                    &o.location,
-                    format!(
-                        "{} has no <film>: Mitsuba's default film uses the gaussian filter, \
-                         which penumbra does not support yet; add <film type=\"hdrfilm\"> \
-                         with <rfilter type=\"box\"/>",
-                        describe(o)
-                    ),
-                ))
-            }
-        },
+        // Mitsuba's default film: hdrfilm 768x576 with the gaussian filter.
+        film: film.unwrap_or(FilmDesc {
+            width: 768,
+            height: 576,
+            rfilter: FilterDesc::Gaussian { stddev: 0.5 },
+        }),
         sampler: sampler.unwrap_or(SamplerDesc {
             sample_count: 4,
             seed: 0,
         }),
         location: o.location.clone(),
+        thin_lens,
     })
 }
 
@@ -489,46 +554,65 @@ fn film_desc(o: &Object) -> Result<FilmDesc> {
     let mut rfilter = None;
     for Child { object: c, .. } in &o.children {
         match c.tag.as_str() {
-            "rfilter" if rfilter.is_none() => {
-                if c.plugin != "box" {
-                    return Err(Error::scene(
-                        &c.location,
-                        format!(
-                            "unsupported plugin {}: penumbra supports only the box filter so far",
-                            describe(c)
-                        ),
-                    ));
-                }
-                let mut fp = Props::new(c);
-                let radius = fp.float("radius", 0.5)?;
-                fp.finish()?;
-                no_children(c)?;
-                if radius != 0.5 {
-                    return Err(Error::scene(
-                        &c.location,
-                        "the box filter is supported with its default radius 0.5 only",
-                    ));
-                }
-                rfilter = Some(FilterDesc::Box);
-            }
+            "rfilter" if rfilter.is_none() => rfilter = Some(rfilter_desc(c)?),
             _ => return Err(unexpected_child(o, c)),
         }
     }
-    let rfilter = rfilter.ok_or_else(|| {
-        Error::scene(
-            &o.location,
-            format!(
-                "{} has no <rfilter>: Mitsuba's default is gaussian, which penumbra does not \
-                 support yet; add <rfilter type=\"box\"/>",
-                describe(o)
-            ),
-        )
-    })?;
+    // Mitsuba's default reconstruction filter.
+    let rfilter = rfilter.unwrap_or(FilterDesc::Gaussian { stddev: 0.5 });
     Ok(FilmDesc {
         width: width as u32,
         height: height as u32,
         rfilter,
     })
+}
+
+fn rfilter_desc(c: &Object) -> Result<FilterDesc> {
+    no_children(c)?;
+    let mut fp = Props::new(c);
+    let f = match c.plugin.as_str() {
+        "box" => {
+            let radius = fp.float("radius", 0.5)?;
+            if radius != 0.5 {
+                return Err(Error::scene(
+                    &c.location,
+                    "the box filter is supported with its default radius 0.5 only",
+                ));
+            }
+            FilterDesc::Box
+        }
+        "tent" => FilterDesc::Tent {
+            radius: positive(fp.float("radius", 1.0)?, "radius", c)?,
+        },
+        "gaussian" => FilterDesc::Gaussian {
+            stddev: positive(fp.float("stddev", 0.5)?, "stddev", c)?,
+        },
+        _ => {
+            return Err(Error::scene(
+                &c.location,
+                format!(
+                    "unsupported plugin {}: penumbra supports the box, tent and gaussian filters",
+                    describe(c)
+                ),
+            ))
+        }
+    };
+    fp.finish()?;
+    if let FilterDesc::Tent { radius: r } | FilterDesc::Gaussian { stddev: r } = f {
+        // At most 15 pixels of reach per side: beyond that a filter is surely a mistake.
+        let radius = if matches!(f, FilterDesc::Gaussian { .. }) {
+            4.0 * r
+        } else {
+            r
+        };
+        if radius > 7.5 {
+            return Err(Error::scene(
+                &c.location,
+                format!("the radius of {} must be at most 7.5 pixels", describe(c)),
+            ));
+        }
+    }
+    Ok(f)
 }
 
 fn sampler_desc(o: &Object) -> Result<SamplerDesc> {
@@ -680,4 +764,115 @@ fn area_emitter_desc(o: &Object) -> Result<EmitterDesc> {
         return Err(Error::scene(&o.location, "radiance must not be negative"));
     }
     Ok(EmitterDesc::Area { radiance })
+}
+
+fn scene_emitter_desc(o: &Object) -> Result<EmitterDesc> {
+    no_children(o)?;
+    let mut p = Props::new(o);
+    let non_negative = |c: DVec3, what: &str| -> Result<DVec3> {
+        if c.min_element() < 0.0 || !c.is_finite() {
+            return Err(Error::scene(
+                &o.location,
+                format!("{what} of {} must be finite and not negative", describe(o)),
+            ));
+        }
+        Ok(c)
+    };
+    let e = match o.plugin.as_str() {
+        "point" => {
+            let to_world = p.transform("to_world")?;
+            let position = p.point("position", to_world.transform_point3(DVec3::ZERO))?;
+            let intensity = p.color("intensity")?.unwrap_or(DVec3::ONE);
+            EmitterDesc::Point {
+                position,
+                intensity: non_negative(intensity, "intensity")?,
+            }
+        }
+        "spot" => {
+            let to_world = p.transform("to_world")?;
+            let intensity = p.color("intensity")?.unwrap_or(DVec3::ONE);
+            let cutoff_angle = p.float("cutoff_angle", 20.0)?;
+            let beam_width = p.float("beam_width", cutoff_angle * 0.75)?;
+            if !(cutoff_angle > 0.0 && cutoff_angle <= 180.0) {
+                return Err(Error::scene(
+                    &o.location,
+                    format!("cutoff_angle must lie in (0, 180] degrees, got {cutoff_angle}"),
+                ));
+            }
+            if !(beam_width >= 0.0 && beam_width <= cutoff_angle) {
+                return Err(Error::scene(
+                    &o.location,
+                    format!("beam_width must lie in [0, cutoff_angle], got {beam_width}"),
+                ));
+            }
+            EmitterDesc::Spot {
+                to_world,
+                intensity: non_negative(intensity, "intensity")?,
+                cutoff_angle,
+                beam_width,
+            }
+        }
+        "directional" => {
+            let to_world = p.transform("to_world")?;
+            let direction = p.point("direction", to_world.transform_vector3(DVec3::Z))?;
+            let irradiance = p.color("irradiance")?.unwrap_or(DVec3::ONE);
+            let direction = direction.try_normalize().ok_or_else(|| {
+                Error::scene(
+                    &o.location,
+                    "the direction of a directional emitter is zero",
+                )
+            })?;
+            EmitterDesc::Directional {
+                direction,
+                irradiance: non_negative(irradiance, "irradiance")?,
+            }
+        }
+        "constant" => {
+            let radiance = p.color("radiance")?.unwrap_or(DVec3::ONE);
+            EmitterDesc::Constant {
+                radiance: non_negative(radiance, "radiance")?,
+            }
+        }
+        "envmap" => {
+            let (name, _) = p.string("filename")?.ok_or_else(|| {
+                Error::scene(&o.location, format!("{} needs a 'filename'", describe(o)))
+            })?;
+            let base = o
+                .location
+                .file
+                .parent()
+                .map(PathBuf::from)
+                .unwrap_or_default();
+            let scale = p.float("scale", 1.0)?;
+            if !(scale >= 0.0 && scale.is_finite()) {
+                return Err(Error::scene(
+                    &o.location,
+                    format!("scale of {} must be >= 0, got {scale}", describe(o)),
+                ));
+            }
+            if let Some((f, loc)) = p.string("filter_type")? {
+                if f != "bilinear" {
+                    return Err(Error::scene(
+                        loc,
+                        format!("filter_type '{f}' is not supported (penumbra: bilinear)"),
+                    ));
+                }
+            }
+            EmitterDesc::EnvMap {
+                filename: base.join(name),
+                scale,
+                to_world: p.transform("to_world")?,
+                location: o.location.clone(),
+            }
+        }
+        "area" => {
+            return Err(Error::scene(
+                &o.location,
+                "an area emitter must be nested in a <shape>",
+            ))
+        }
+        _ => return Err(unsupported_plugin(o)),
+    };
+    p.finish()?;
+    Ok(e)
 }

@@ -14,6 +14,7 @@ use crate::error::Result;
 use crate::film::Filter;
 use crate::geometry::{offset_ray_origin, Ray, SHADOW_EPSILON};
 use crate::integrator::Integrator;
+use crate::sampling::AliasTable;
 use crate::shape::{Shape, SurfaceInteraction};
 use glam::{Vec2, Vec3};
 use std::path::Path;
@@ -35,6 +36,13 @@ pub struct Scene {
     pub integrator: Integrator,
     /// Things the user should know that are not errors (skipped faces, no emitter, ...).
     pub warnings: Vec<String>,
+    /// Emitter selection for next-event estimation, in proportion to each emitter's power
+    /// (`Emitter::power`); uniform when no power is positive.
+    pub emitter_selection: Option<AliasTable>,
+    /// Index of the environment emitter (constant or envmap), at most one as in Mitsuba.
+    pub environment: Option<u32>,
+    /// Centre and radius of a sphere bounding every shape.
+    pub bounding_sphere: (Vec3, f32),
 }
 
 impl Scene {
@@ -80,27 +88,39 @@ impl Scene {
         )
     }
 
-    /// The shadow ray from `si` to the emitter point of `ds`: both ends are offset off their
-    /// surfaces, and the ray stops a relative [`SHADOW_EPSILON`] short of its end. The
-    /// direction is normalised: the BVH's slab test clamps direction components below
-    /// f32::EPSILON, which would distort an unnormalised segment in a tiny scene.
+    /// The shadow ray from `si` to the emitter point of `ds`. Towards a surface both ends are
+    /// offset off their surfaces and the ray stops a relative [`SHADOW_EPSILON`] short of its
+    /// end; towards a point light only the surface end is offset; towards an emitter at
+    /// infinity the ray is unbounded.
     #[inline]
     pub fn shadow_ray(si: &SurfaceInteraction, ds: &DirectionSample) -> Ray {
         let from = offset_ray_origin(si.p, si.p_error, si.ng, ds.d);
-        let to = offset_ray_origin(ds.p, ds.p_error, ds.n, -ds.d);
+        if ds.is_infinite() {
+            return Ray::new(from, ds.d, f32::INFINITY);
+        }
+        let to = if ds.n == Vec3::ZERO {
+            ds.p
+        } else {
+            offset_ray_origin(ds.p, ds.p_error, ds.n, -ds.d)
+        };
+        // Normalised: the BVH's slab test works with the inverse direction, and a tiny
+        // unnormalised segment (a scene scaled by 1e-4) loses precision there.
         let v = to - from;
         let len = v.length();
         Ray::new(from, v / len, len * (1.0 - SHADOW_EPSILON))
     }
 
-    /// Probability of choosing emitter `i` for next-event estimation (uniform, as Mitsuba).
+    /// Probability of choosing emitter `i` for next-event estimation.
     #[inline]
-    fn emitter_pmf(&self) -> f32 {
-        1.0 / self.emitters.len() as f32
+    pub fn emitter_pmf(&self, i: usize) -> f32 {
+        match &self.emitter_selection {
+            Some(t) => t.pmf(i) as f32,
+            None => 1.0 / self.emitters.len() as f32,
+        }
     }
 
-    /// Picks an emitter and a point on it as seen from `si`; the returned pdf includes the
-    /// selection probability. Visibility is not tested.
+    /// Picks an emitter (in proportion to its power) and a direction to it as seen from
+    /// `si`; the returned pdf includes the selection probability. Visibility is not tested.
     pub fn sample_emitter_direction(
         &self,
         si: &SurfaceInteraction,
@@ -109,12 +129,17 @@ impl Scene {
         if self.emitters.is_empty() {
             return None;
         }
-        let n = self.emitters.len();
-        let x = u.x * n as f32;
-        let i = (x as usize).min(n - 1);
-        let ux = (x - i as f32).clamp(0.0, 1.0 - f32::EPSILON / 2.0);
+        let (i, ux) = match &self.emitter_selection {
+            Some(t) => t.sample_reuse(u.x),
+            None => {
+                let n = self.emitters.len();
+                let x = u.x * n as f32;
+                let i = (x as usize).min(n - 1);
+                (i, (x - i as f32).clamp(0.0, 1.0 - f32::EPSILON / 2.0))
+            }
+        };
         let mut ds = self.emitters[i].sample_direction(si.p, Vec2::new(ux, u.y), &self.shapes)?;
-        ds.pdf *= self.emitter_pmf();
+        ds.pdf *= self.emitter_pmf(i);
         Some(ds)
     }
 
@@ -125,7 +150,31 @@ impl Scene {
             return 0.0;
         };
         match &self.emitters[e as usize] {
-            Emitter::Area(a) => a.pdf_direction(p_ref, hit, &self.shapes) * self.emitter_pmf(),
+            Emitter::Area(a) => {
+                a.pdf_direction(p_ref, hit, &self.shapes) * self.emitter_pmf(e as usize)
+            }
+            _ => 0.0,
+        }
+    }
+
+    /// Radiance of the environment emitter arriving along −`d` (0 without one).
+    #[inline]
+    pub fn eval_environment(&self, d: Vec3) -> Vec3 {
+        match self.environment {
+            Some(e) => self.emitters[e as usize].eval_environment(d.normalize()),
+            None => Vec3::ZERO,
+        }
+    }
+
+    /// The density with which [`Scene::sample_emitter_direction`] produces the escaping
+    /// direction `d` (selection probability included).
+    pub fn pdf_environment(&self, d: Vec3) -> f32 {
+        match self.environment {
+            Some(e) => {
+                self.emitters[e as usize].pdf_environment(d.normalize())
+                    * self.emitter_pmf(e as usize)
+            }
+            None => 0.0,
         }
     }
 }

@@ -87,7 +87,13 @@ impl Sphere {
 
     pub fn sample_position(&self, u: Vec2) -> PositionSample {
         let w = square_to_uniform_sphere(u).as_dvec3();
-        let p = self.center + w * self.radius;
+        self.position_at(w)
+    }
+
+    /// The point of the sphere in direction `w` (any length) from the centre, with its
+    /// normal, error bound and the uniform area density.
+    pub fn position_at(&self, w: DVec3) -> PositionSample {
+        let p = self.center + w.normalize() * self.radius;
         let (p32, p_error) = Self::rounded(p);
         PositionSample {
             p: p32,

@@ -15,8 +15,20 @@ Mitsuba writes it) has the channels
                                     the per-pixel, per-channel variance of ONE sample
 
 so the variance of the pixel mean is ``variance / spp``. With a box reconstruction filter every
-sample lands in exactly one pixel, which is what makes this a per-sample variance; the script
-warns for other filters.
+sample lands in exactly one pixel, which is what makes this a per-sample variance. With other
+filters (e.g. Mitsuba's default gaussian) every sample is splatted to the pixels within the
+filter radius and a pixel's value is the weighted mean sum(w f) / sum(w). The squared values
+are splatted through the same filter, so ``E_w[x^2] - E_w[x]^2`` is the weighted per-sample
+variance sigma^2, and the variance of the pixel value is sigma^2 * K / spp with
+
+    K = Kx(i) * Ky(j),   Kx(i) = int w(x - c_i)^2 dx / (int w(x - c_i) dx)^2
+
+integrated over the part of the filter's footprint inside the image (samples are uniform in
+the image at spp per unit area; K = 1 for the box filter, about 0.32 for the default gaussian
+inside the image, larger at the border). The script multiplies the variance by K, so the
+variance channels stay "per-sample-equivalent": spp x Var(pixel value), which is what penumbra
+writes for every filter. K is computed by quadrature from Mitsuba's own filter (``rfilter.eval``,
+which is what the image block of Mitsuba's JIT variants splats with).
 
 Variance methods (``--variance``):
 
@@ -137,6 +149,34 @@ def render_passes(mi, scene, variant, method, sizes, seed_base, quiet):
     return mean, var, seconds
 
 
+def filter_variance_factor_1d(mi, rfilter, n):
+    """Kx(i) for i in 0..n-1 (see the module docstring), by the composite Simpson rule on
+    Mitsuba's own filter (rfilter.eval: the weights its JIT variants splat with), each side of
+    the pixel centre integrated up to the radius or the image border."""
+    if rfilter.class_name() == "BoxFilter":
+        return np.ones(n)
+    r = float(rfilter.radius())
+    m = 2000  # Simpson intervals per side (even)
+    simpson = np.ones(m + 1)
+    simpson[1:-1:2] = 4.0
+    simpson[2:-1:2] = 2.0
+
+    def moments(length):
+        xs = np.linspace(0.0, length, m + 1)
+        w = np.array(rfilter.eval(mi.Float(xs)), dtype=np.float64)
+        w[xs >= r] = 0.0
+        h = length / m / 3.0
+        return np.sum(simpson * w) * h, np.sum(simpson * w * w) * h
+
+    out = np.empty(n)
+    for i in range(n):
+        c = i + 0.5
+        left, right = moments(min(r, c)), moments(min(r, n - c))
+        m1, m2 = left[0] + right[0], left[1] + right[1]
+        out[i] = m2 / (m1 * m1)
+    return out
+
+
 def write_exr(mi, path, mean, var, metadata=None):
     """Write R,G,B,variance.R,variance.G,variance.B as float32 in one EXR part.
 
@@ -200,15 +240,21 @@ def main(argv=None):
 
     scene = mu.load_scene(mi, args.scene, defines)
     width, height, rfilter = mu.film_info(scene)
+    rf = scene.sensors()[0].film().rfilter()
+    kx = filter_variance_factor_1d(mi, rf, width)
+    ky = filter_variance_factor_1d(mi, rf, height)
+    factor = ky[:, None, None] * kx[None, :, None]
     if rfilter != "BoxFilter":
-        print(f"warning: film filter is {rfilter}, not box: samples spread over several "
-              "pixels and the variance channels are not per-sample variances",
-              file=sys.stderr)
+        print(f"film filter {rfilter}: variance scaled by the per-pixel filter factor K "
+              f"(interior {kx[width // 2] * ky[height // 2]:.4f})", file=sys.stderr)
 
     print(f"{args.scene}: {width}x{height}, {args.spp} spp in {len(sizes)} passes of "
           f"{args.pass_spp}, variant {variant}, variance {method}", file=sys.stderr)
     mean, var, seconds = render_passes(mi, scene, variant, method, sizes, args.seed_base,
                                        args.quiet)
+    if method == "rgb-moment":
+        # "passes" already measures spp x Var(pixel value) directly; the moments need K.
+        var = var * factor
     data = write_exr(mi, args.out, mean, var, {
         "spp": args.spp,
         "mitsuba_version": mi.__version__,
@@ -241,6 +287,8 @@ def main(argv=None):
         "seed_base": args.seed_base,
         "image_mean": image_mean,
         "variance_mean": variance_mean,
+        "rfilter": rfilter,
+        "variance_filter_factor_interior": float(kx[width // 2] * ky[height // 2]),
     }
     if not args.no_manifest:
         update_manifest(args.manifest, os.path.basename(args.out), entry)

@@ -1,0 +1,28 @@
+//! Mitsuba's `directional` emitter: light arriving from infinity along one direction with
+//! irradiance E (W/m²) on a surface perpendicular to it (a Dirac delta in direction).
+
+use super::DirectionSample;
+use crate::bsdf::Spectrum;
+use glam::Vec3;
+
+#[derive(Clone, Debug)]
+pub struct DirectionalEmitter {
+    /// Unit direction in which the light travels.
+    pub direction: Vec3,
+    pub irradiance: Spectrum,
+}
+
+impl DirectionalEmitter {
+    pub fn sample_direction(&self) -> DirectionSample {
+        DirectionSample {
+            p: Vec3::ZERO,
+            p_error: Vec3::ZERO,
+            n: Vec3::ZERO,
+            d: -self.direction,
+            dist: f32::INFINITY,
+            pdf: 1.0,
+            radiance: self.irradiance,
+            delta: true,
+        }
+    }
+}

@@ -1,0 +1,394 @@
+//! Emitter sampling through the scene (power-proportional selection included): chi-square
+//! tests of the sampled directions against the density that the path tracer's MIS uses
+//! (`Scene::pdf_emitter_direction` for surfaces, `Scene::pdf_environment` for escaping rays),
+//! sample/pdf/eval consistency, analytic irradiance, and the delta lights' values.
+
+mod common;
+use common::*;
+use glam::{Vec2, Vec3};
+use penumbra::chi2::{chi2_test, Chi2Config};
+use penumbra::emitter::Emitter;
+use penumbra::geometry::{Frame, Ray};
+use penumbra::sampler::SampleStream;
+use penumbra::scene::Scene;
+use penumbra::shape::SurfaceInteraction;
+use penumbra::stats::sidak;
+use std::f64::consts::PI;
+
+/// Chi-square tests in this file (for the Šidák correction of α = 0.01).
+const CHI2_TESTS: usize = 10;
+
+fn scene(body: &str) -> Scene {
+    scene_from_str(&format!(
+        r#"<scene version="3.0.0">
+    <sensor type="perspective">
+        <float name="fov" value="45"/>
+        <film type="hdrfilm"><integer name="width" value="8"/><integer name="height" value="8"/></film>
+    </sensor>
+    {body}
+</scene>"#
+    ))
+}
+
+fn reference_point(p: Vec3, n: Vec3) -> SurfaceInteraction {
+    SurfaceInteraction {
+        p,
+        p_error: Vec3::ZERO,
+        t: 1.0,
+        ng: n,
+        frame: Frame::from_normal(n),
+        uv: Vec2::ZERO,
+        shape: 0,
+    }
+}
+
+/// The density the path tracer's MIS uses for direction `d` from `p`, and the radiance it
+/// sees there: the emitter surface hit first, or the environment.
+fn pdf_and_radiance(scene: &Scene, p: Vec3, d: Vec3) -> (f64, Vec3) {
+    match scene.intersect(&Ray::new(p, d, f32::INFINITY)) {
+        Some(hit) => {
+            let le = match scene.shapes[hit.shape as usize].emitter {
+                Some(e) => match &scene.emitters[e as usize] {
+                    Emitter::Area(a) => a.eval(&hit, -d),
+                    _ => Vec3::ZERO,
+                },
+                None => Vec3::ZERO,
+            };
+            (scene.pdf_emitter_direction(p, &hit) as f64, le)
+        }
+        None => (scene.pdf_environment(d) as f64, scene.eval_environment(d)),
+    }
+}
+
+/// Chi-square test of `scene.sample_emitter_direction` from `p` (delta samples left out),
+/// plus the per-sample consistency of pdf and radiance with what a ray in that direction
+/// finds.
+fn check_sampling(name: &str, scene: &Scene, p: Vec3, seed: u64) {
+    let si = reference_point(p, Vec3::Z);
+    let n = 300_000;
+    // Emitter densities jump at the silhouettes of the lights: a finer Simpson rule than
+    // for smooth BSDF densities keeps the cells they cut accurate (with 8 sub-intervals the
+    // rectangle's χ² was 1818 on 90 dof, with 32 it is 100).
+    let cfg = Chi2Config {
+        quadrature: 32,
+        ..Chi2Config::default()
+    };
+    let mut checked = 0;
+    let r = chi2_test(
+        n,
+        |i| {
+            let u = SampleStream::new(seed, i as u64, 0).next_2d();
+            let ds = scene.sample_emitter_direction(&si, u)?;
+            // Delta samples have no density; occluded samples (behind another emitter)
+            // contribute nothing, and the density of the rest at d is that of the emitter
+            // a ray along d finds first.
+            if ds.delta || scene.occluded(&Scene::shadow_ray(&si, &ds)) {
+                return None;
+            }
+            if i % 97 == 0 {
+                let (pdf, le) = pdf_and_radiance(scene, p, ds.d);
+                assert!(
+                    (pdf - ds.pdf as f64).abs() <= 2e-3 * pdf.max(ds.pdf as f64),
+                    "{name}: sampled pdf {} vs pdf() {pdf} at {}",
+                    ds.pdf,
+                    ds.d
+                );
+                assert!(
+                    (le - ds.radiance).abs().max_element() <= 1e-3 * le.max_element().max(1e-3),
+                    "{name}: sampled radiance {} vs eval {le}",
+                    ds.radiance
+                );
+                checked += 1;
+            }
+            Some(ds.d)
+        },
+        |d| pdf_and_radiance(scene, p, d).0,
+        &cfg,
+    );
+    let alpha = sidak(0.01, CHI2_TESTS);
+    eprintln!(
+        "{name}: chi2 {:.1}, dof {}, p = {:.4}, pdf integral {:.4}, landed {}",
+        r.statistic, r.dof, r.p_value, r.pdf_integral, r.landed
+    );
+    assert!(checked > 100, "{name}: only {checked} samples checked");
+    assert!(r.p_value > alpha, "{name}: {r:?}");
+    assert!(
+        (r.pdf_integral - r.landed as f64 / n as f64).abs() < 0.01,
+        "{name}: pdf integral {} vs fraction landed {}",
+        r.pdf_integral,
+        r.landed as f64 / n as f64
+    );
+}
+
+#[test]
+fn area_lights_on_every_shape_chi2() {
+    let s = scene(
+        r#"<shape type="rectangle">
+        <transform name="to_world"><scale value="0.5, 0.3, 1"/><rotate value="1, 0, 0" angle="120"/><translate value="0, 1, 0.5"/></transform>
+        <emitter type="area"><rgb name="radiance" value="1, 2, 3"/></emitter>
+    </shape>"#,
+    );
+    check_sampling("rectangle", &s, Vec3::new(0.2, -0.3, 0.1), 1);
+    let s = scene(
+        r#"<shape type="disk">
+        <transform name="to_world"><scale value="0.4"/><rotate value="0, 1, 0" angle="-70"/><translate value="1.2, 0.1, 0"/></transform>
+        <emitter type="area"><float name="radiance" value="5"/></emitter>
+    </shape>"#,
+    );
+    check_sampling("disk", &s, Vec3::new(0.0, 0.2, 0.4), 2);
+    let s = scene(
+        r#"<shape type="cube">
+        <transform name="to_world"><scale value="0.3, 0.2, 0.4"/><rotate value="1, 1, 0" angle="30"/><translate value="0, 0, 1.5"/></transform>
+        <emitter type="area"><float name="radiance" value="1"/></emitter>
+    </shape>"#,
+    );
+    check_sampling("cube", &s, Vec3::new(0.5, -0.5, 0.0), 3);
+}
+
+#[test]
+fn area_light_on_an_obj_mesh_chi2() {
+    // A tetrahedron (convex: every face that faces the reference point is visible).
+    let dir = std::env::temp_dir().join(format!("penumbra-emitters-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let obj = dir.join("tet.obj");
+    std::fs::write(
+        &obj,
+        "v 0 0 0\nv 1 0 0\nv 0 1 0\nv 0 0 1\nf 1 3 2\nf 1 2 4\nf 1 4 3\nf 2 3 4\n",
+    )
+    .unwrap();
+    let s = scene(&format!(
+        r#"<shape type="obj">
+        <string name="filename" value="{}"/>
+        <boolean name="face_normals" value="true"/>
+        <transform name="to_world"><translate value="-0.2, -0.3, 1.2"/></transform>
+        <emitter type="area"><float name="radiance" value="1"/></emitter>
+    </shape>"#,
+        obj.display()
+    ));
+    check_sampling("obj tetrahedron", &s, Vec3::new(0.4, 0.6, -0.3), 4);
+    std::fs::remove_dir_all(&dir).ok();
+}
+
+#[test]
+fn sphere_lights_from_outside_and_inside_chi2() {
+    let s = scene(
+        r#"<shape type="sphere">
+        <point name="center" x="0.3" y="0.2" z="1.0"/><float name="radius" value="0.4"/>
+        <emitter type="area"><float name="radiance" value="2"/></emitter>
+    </shape>"#,
+    );
+    // Outside, near and far: cone sampling.
+    check_sampling("sphere outside near", &s, Vec3::new(0.0, 0.0, 0.3), 5);
+    check_sampling("sphere outside far", &s, Vec3::new(-3.0, 2.0, -4.0), 6);
+    // Inside a sphere that emits inwards: area sampling.
+    let s = scene(
+        r#"<shape type="sphere">
+        <float name="radius" value="2"/><boolean name="flip_normals" value="true"/>
+        <emitter type="area"><float name="radiance" value="2"/></emitter>
+    </shape>"#,
+    );
+    check_sampling("sphere inside", &s, Vec3::new(0.5, -0.7, 0.9), 7);
+}
+
+#[test]
+fn environment_lights_chi2() {
+    let s =
+        scene(r#"<emitter type="constant"><rgb name="radiance" value="0.2, 0.5, 1"/></emitter>"#);
+    check_sampling("constant", &s, Vec3::ZERO, 8);
+    let s = scene(
+        r#"<emitter type="envmap">
+        <string name="filename" value="../scenes/textures/sky-64x32.exr"/>
+        <float name="scale" value="2"/>
+        <transform name="to_world"><rotate value="1, 1, 0" angle="40"/></transform>
+    </emitter>"#,
+    );
+    check_sampling("envmap", &s, Vec3::new(1.0, 2.0, 3.0), 9);
+}
+
+#[test]
+fn several_lights_selected_by_power_chi2() {
+    // Rectangle, sphere, spot (delta: left out of the histogram) and an environment.
+    let s = scene(
+        r#"<shape type="rectangle">
+        <transform name="to_world"><scale value="0.5"/><rotate value="1, 0, 0" angle="90"/><translate value="0, 1, 0"/></transform>
+        <emitter type="area"><float name="radiance" value="3"/></emitter>
+    </shape>
+    <shape type="sphere">
+        <point name="center" x="1" y="0" z="0"/><float name="radius" value="0.2"/>
+        <emitter type="area"><float name="radiance" value="10"/></emitter>
+    </shape>
+    <emitter type="spot"><rgb name="intensity" value="2"/></emitter>
+    <emitter type="constant"><float name="radiance" value="0.05"/></emitter>"#,
+    );
+    // Selection in proportion to power: π A L for the area lights.
+    let p_rect = PI * 1.0 * 3.0;
+    let p_sphere = PI * (4.0 * PI * 0.04) * 10.0;
+    let pmf = |i| s.emitter_pmf(i) as f64;
+    assert!(((pmf(0) / pmf(1)) / (p_rect / p_sphere) - 1.0).abs() < 1e-5);
+    let r = s.bounding_sphere.1 as f64;
+    let p_env = PI * PI * r * r * 0.05;
+    assert!(((pmf(0) / pmf(3)) / (p_rect / p_env) - 1.0).abs() < 1e-5);
+    assert!(((0..4).map(pmf).sum::<f64>() - 1.0).abs() < 1e-6);
+    check_sampling(
+        "rectangle + sphere + spot + constant",
+        &s,
+        Vec3::new(0.1, 0.0, 0.5),
+        10,
+    );
+}
+
+/// The NEE estimate of the irradiance at `si` (normal `si.frame.n`), unoccluded, with its
+/// standard error.
+fn nee_irradiance(scene: &Scene, si: &SurfaceInteraction, n: usize, seed: u64) -> (f64, f64) {
+    let (mut s1, mut s2) = (0.0, 0.0);
+    for i in 0..n {
+        let u = SampleStream::new(seed, i as u64, 0).next_2d();
+        let v = match scene.sample_emitter_direction(si, u) {
+            Some(ds) => {
+                let cos = ds.d.dot(si.frame.n).max(0.0) as f64;
+                ds.radiance.x as f64 * cos / ds.pdf as f64
+            }
+            None => 0.0,
+        };
+        s1 += v;
+        s2 += v * v;
+    }
+    let m = s1 / n as f64;
+    (m, ((s2 / n as f64 - m * m) / n as f64).sqrt())
+}
+
+fn assert_irradiance(name: &str, est: (f64, f64), exact: f64) {
+    eprintln!("{name}: E = {:.6} ± {:.6}, exact {exact:.6}", est.0, est.1);
+    assert!(
+        (est.0 - exact).abs() < 4.0 * est.1 && (est.0 - exact).abs() < 0.01 * exact,
+        "{name}: {} ± {} vs {exact}",
+        est.0,
+        est.1
+    );
+}
+
+#[test]
+fn analytic_irradiance_from_disk_sphere_and_constant_environment() {
+    // Disk of radius R at height h facing down: E = π L R² / (R² + h²) on its axis.
+    let s = scene(
+        r#"<shape type="disk">
+        <transform name="to_world"><scale value="0.5"/><rotate value="1, 0, 0" angle="180"/><translate value="0, 0, 1"/></transform>
+        <emitter type="area"><float name="radiance" value="2"/></emitter>
+    </shape>"#,
+    );
+    let si = reference_point(Vec3::ZERO, Vec3::Z);
+    assert_irradiance(
+        "disk",
+        nee_irradiance(&s, &si, 200_000, 11),
+        PI * 2.0 * 0.25 / 1.25,
+    );
+    // Sphere of radius r at distance d, facing its centre: E = π L (r / d)².
+    let s = scene(
+        r#"<shape type="sphere">
+        <point name="center" x="0" y="0" z="3"/><float name="radius" value="0.5"/>
+        <emitter type="area"><float name="radiance" value="4"/></emitter>
+    </shape>"#,
+    );
+    assert_irradiance(
+        "sphere",
+        nee_irradiance(&s, &si, 200_000, 12),
+        PI * 4.0 / 36.0,
+    );
+    // Constant environment on an unoccluded plane: E = π L.
+    let s = scene(r#"<emitter type="constant"><float name="radiance" value="0.7"/></emitter>"#);
+    assert_irradiance("constant", nee_irradiance(&s, &si, 200_000, 13), PI * 0.7);
+    // The envmap's irradiance on a horizontal plane against a brute-force quadrature of its
+    // radiance over the upper hemisphere (midpoint rule on a fine (cos θ, φ) grid).
+    let s = scene(
+        r#"<emitter type="envmap"><string name="filename" value="../scenes/textures/sky-64x32.exr"/></emitter>"#,
+    );
+    let si_up = reference_point(Vec3::ZERO, Vec3::Y);
+    let (nt, np) = (400, 800);
+    let mut exact = 0.0;
+    for i in 0..nt {
+        let ct = (i as f64 + 0.5) / nt as f64;
+        let st = (1.0 - ct * ct).sqrt();
+        for j in 0..np {
+            let phi = 2.0 * PI * (j as f64 + 0.5) / np as f64;
+            let d = Vec3::new((st * phi.cos()) as f32, ct as f32, (st * phi.sin()) as f32);
+            exact += s.eval_environment(d).x as f64 * ct;
+        }
+    }
+    exact *= 2.0 * PI / (nt * np) as f64;
+    assert_irradiance("envmap", nee_irradiance(&s, &si_up, 400_000, 14), exact);
+}
+
+#[test]
+fn delta_lights_give_mitsubas_values() {
+    let si = reference_point(Vec3::ZERO, Vec3::Z);
+    // Point: I / r² (Mitsuba 3.9.1: intensity 3 at distance 2 gives 0.75).
+    let s = scene(
+        r#"<emitter type="point"><point name="position" value="0, 0, 2"/><float name="intensity" value="3"/></emitter>"#,
+    );
+    let ds = s.sample_emitter_direction(&si, Vec2::splat(0.5)).unwrap();
+    assert!(ds.delta && ds.pdf == 1.0 && (ds.dist - 2.0).abs() < 1e-6);
+    assert!((ds.radiance - Vec3::splat(0.75)).abs().max_element() < 1e-6);
+    assert!((ds.d - Vec3::Z).length() < 1e-6);
+    // The shadow ray ends a relative SHADOW_EPSILON short of the light, leaving from the
+    // offset surface point.
+    let ray = Scene::shadow_ray(&si, &ds);
+    let end = ray.at(ray.tmax / (1.0 - penumbra::geometry::SHADOW_EPSILON));
+    assert!((end - Vec3::new(0.0, 0.0, 2.0)).length() < 1e-6);
+    // Spot (cutoff 20°, beam 15°), at distance 2 and angle θ from its axis; Mitsuba 3.9.1's
+    // values of intensity · falloff: 1 up to 15°, 0.8 at 16°, 0.4 at 18°, 0.02 at 19.9°, 0
+    // beyond 20°.
+    let s = scene(r#"<emitter type="spot"><float name="intensity" value="1"/></emitter>"#);
+    for (deg, expected) in [
+        (0.0, 1.0),
+        (10.0, 1.0),
+        (14.0, 1.0),
+        (16.0, 0.8),
+        (18.0, 0.4),
+        (19.9, 0.02),
+        (20.1, 0.0),
+    ] {
+        let a = (deg as f32).to_radians();
+        let p = Vec3::new(a.sin() * 2.0, 0.0, a.cos() * 2.0);
+        let si = reference_point(p, -Vec3::Z);
+        let got = s
+            .sample_emitter_direction(&si, Vec2::splat(0.5))
+            .map_or(0.0, |ds| ds.radiance.x * 4.0);
+        assert!(
+            (got - expected).abs() < 2e-4,
+            "spot at {deg}°: {got} vs {expected}"
+        );
+    }
+    // Directional: irradiance E from the opposite of its direction, shadow ray to ∞.
+    let s = scene(
+        r#"<emitter type="directional"><vector name="direction" value="0, 0, -1"/><float name="irradiance" value="2"/></emitter>"#,
+    );
+    let ds = s.sample_emitter_direction(&si, Vec2::splat(0.3)).unwrap();
+    assert!(ds.delta && ds.is_infinite() && (ds.d - Vec3::Z).length() < 1e-6);
+    assert_eq!(ds.radiance, Vec3::splat(2.0));
+    assert_eq!(Scene::shadow_ray(&si, &ds).tmax, f32::INFINITY);
+}
+
+#[test]
+fn environment_seen_by_camera_rays_unless_emitters_are_hidden() {
+    let xml = |hide: bool| {
+        format!(
+            r#"<scene version="3.0.0">
+    <integrator type="path"><boolean name="hide_emitters" value="{hide}"/></integrator>
+    <sensor type="perspective">
+        <float name="fov" value="45"/>
+        <film type="hdrfilm"><integer name="width" value="8"/><integer name="height" value="8"/></film>
+    </sensor>
+    <emitter type="constant"><rgb name="radiance" value="0.25, 0.5, 1"/></emitter>
+</scene>"#
+        )
+    };
+    let img = render_scene(&scene_from_str(&xml(false)), 2, 0, None)
+        .film
+        .image();
+    assert!(img.iter().all(|p| *p == [0.25, 0.5, 1.0]));
+    // Mitsuba: with hide_emitters, camera rays that leave the scene return 0.
+    let img = render_scene(&scene_from_str(&xml(true)), 2, 0, None)
+        .film
+        .image();
+    assert!(img.iter().all(|p| *p == [0.0; 3]));
+}
