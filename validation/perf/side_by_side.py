@@ -104,18 +104,21 @@ def main():
             pen = [penumbra_run(sc, args.spp, s, args.threads, tmp) for s in seeds]
             pt = statistics.median(t for t, _ in pen)
             pm = statistics.median(mse(img, ref) for _, img in pen)
-            row = {"scene": sc["name"], "penumbra_s": pt, "penumbra_mse": pm}
+            paths = ref.shape[0] * ref.shape[1] * args.spp
+            row = {"scene": sc["name"], "penumbra_s": pt, "penumbra_mse": pm,
+                   "penumbra_mpaths": paths / pt / 1e6}
             for v in variants:
                 runs = mitsuba_runs(sc, args.spp, seeds, v)
                 mt = statistics.median(t for t, _ in runs)
                 mm = statistics.median(mse(img, ref) for _, img in runs)
-                row[v] = {"s": mt, "mse": mm, "ratio": (mt * mm) / (pt * pm)}
+                row[v] = {"s": mt, "mse": mm, "ratio": (mt * mm) / (pt * pm),
+                          "mpaths": paths / mt / 1e6}
             rows.append(row)
             print(json.dumps(row), file=sys.stderr)
 
-    head = ["scene", "penumbra s", "penumbra MSE"]
+    head = ["scene", "penumbra s", "Mpath/s", "MSE"]
     for v in variants:
-        head += [f"{v} s", f"{v} MSE", f"ratio vs {v}"]
+        head += [f"{v} s", "Mpath/s", "MSE", f"efficiency ratio vs {v}"]
     lines = [
         f"Side-by-side at {args.spp} spp, medians of {args.repeat} seeds; "
         f"machine: {platform.machine()}, {os.cpu_count()} cores; "
@@ -125,9 +128,11 @@ def main():
         "|" + "---|" * len(head),
     ]
     for r in rows:
-        cells = [r["scene"], f"{r['penumbra_s']:.3f}", f"{r['penumbra_mse']:.3e}"]
+        cells = [r["scene"], f"{r['penumbra_s']:.3f}", f"{r['penumbra_mpaths']:.2f}",
+                 f"{r['penumbra_mse']:.3e}"]
         for v in variants:
-            cells += [f"{r[v]['s']:.3f}", f"{r[v]['mse']:.3e}", f"{r[v]['ratio']:.2f}"]
+            cells += [f"{r[v]['s']:.3f}", f"{r[v]['mpaths']:.2f}", f"{r[v]['mse']:.3e}",
+                      f"{r[v]['ratio']:.2f}"]
         lines.append("| " + " | ".join(cells) + " |")
     table = "\n".join(lines)
     print(table)
