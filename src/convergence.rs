@@ -111,6 +111,21 @@ pub fn run_ladder(
     reference: &[[f32; 3]],
     on_step: &mut dyn FnMut(&LadderStep),
 ) -> Result<Ladder> {
+    run_ladder_with_film(scene, steps, seed, threads, reference, &mut |step, _| {
+        on_step(step)
+    })
+}
+
+/// [`run_ladder`], with `on_step` also seeing the film after each step (for measures that
+/// need the per-pixel variance, like the z-test).
+pub fn run_ladder_with_film(
+    scene: &Scene,
+    steps: &[u32],
+    seed: u64,
+    threads: Option<usize>,
+    reference: &[[f32; 3]],
+    on_step: &mut dyn FnMut(&LadderStep, &Film),
+) -> Result<Ladder> {
     if reference.len() != scene.width * scene.height {
         return Err(Error::Invalid(format!(
             "reference has {} pixels, the scene renders {}x{}",
@@ -147,7 +162,7 @@ pub fn run_ladder(
             seconds: stats.seconds,
             metrics: error_metrics(&film.image(), reference),
         };
-        on_step(&step);
+        on_step(&step, &film);
         out.push(step);
     }
     Ok(Ladder {

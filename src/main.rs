@@ -3,6 +3,7 @@
 use anyhow::{bail, Context, Result};
 use clap::{Parser, Subcommand};
 use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
+use penumbra::compare;
 use penumbra::io::exr::{self, Attribute, RgbImage};
 use penumbra::progressive;
 use penumbra::scene::Scene;
@@ -26,6 +27,74 @@ struct Cli {
 enum Command {
     /// Render a Mitsuba 3 XML scene to an OpenEXR image.
     Render(RenderArgs),
+    /// Compare image A with the reference B: error metrics, z-test, false-colour diff.
+    Compare(CompareArgs),
+    /// Render a ladder of sample counts against a reference: error vs. spp and time, slope,
+    /// efficiency; optionally over several seeds and a swept scene parameter.
+    Converge(ConvergeArgs),
+}
+
+#[derive(clap::Args)]
+struct CompareArgs {
+    /// The image to measure (OpenEXR).
+    a: PathBuf,
+    /// The reference (OpenEXR), e.g. a Mitsuba reference from validation/references/.
+    b: PathBuf,
+    /// Write a signed false-colour difference image (A − B) with a colour bar, as PNG.
+    #[arg(long, value_name = "PNG")]
+    diff: Option<PathBuf>,
+    /// Half-range of the diff's colour map (default: the 99th percentile of |A − B|).
+    #[arg(long, value_name = "R", requires = "diff")]
+    diff_range: Option<f64>,
+    /// Print the results as JSON on stdout.
+    #[arg(long)]
+    json: bool,
+    /// Samples per pixel of A for the z-test (default: its `spp` header attribute).
+    #[arg(long, value_name = "N")]
+    spp_a: Option<f64>,
+    /// Samples per pixel of B for the z-test (default: its `spp` header attribute).
+    #[arg(long, value_name = "N")]
+    spp_b: Option<f64>,
+}
+
+#[derive(clap::Args)]
+struct ConvergeArgs {
+    /// The scene file (Mitsuba 3 XML).
+    scene: PathBuf,
+    /// The reference image (OpenEXR) at the scene's resolution; with variance channels and
+    /// an `spp` header attribute (as Mitsuba references made by validation/mitsuba have) it
+    /// also gives the noise floor and the z-test.
+    #[arg(long, value_name = "EXR")]
+    reference: PathBuf,
+    /// Samples per pixel of the reference (default: its `spp` header attribute).
+    #[arg(long, value_name = "N")]
+    reference_spp: Option<f64>,
+    /// The ladder: cumulative samples per pixel, each step continuing the previous one's
+    /// samples. `a,b,...,n` continues the progression of ratio b/a up to n.
+    #[arg(long, value_name = "LIST", default_value = penumbra::experiment::DEFAULT_SPP)]
+    spp: String,
+    /// Independent ladders with seeds s, s+1, ..., s+K-1: mean and spread per step.
+    #[arg(long, value_name = "K", default_value_t = 1)]
+    seeds: u32,
+    /// First seed (default: the sampler's seed).
+    #[arg(long)]
+    seed: Option<u64>,
+    /// Sweep one scene parameter: NAME=v1,v2,... (a <default> of the scene, as -D sets it;
+    /// or the path integrator's max_depth / rr_depth).
+    #[arg(long, value_name = "NAME=V1,V2,...")]
+    sweep: Option<String>,
+    /// Set a scene parameter declared with <default name=...>, like Mitsuba's -D.
+    #[arg(short = 'D', value_name = "NAME=VALUE")]
+    define: Vec<String>,
+    /// Where converge.csv, converge.json and converge.png go.
+    #[arg(long, value_name = "DIR", default_value = "converge-out")]
+    out_dir: PathBuf,
+    /// Worker threads (default: one per core).
+    #[arg(long)]
+    threads: Option<usize>,
+    /// No per-step progress lines on stderr.
+    #[arg(short, long)]
+    quiet: bool,
 }
 
 #[derive(clap::Args)]
@@ -282,10 +351,304 @@ fn run_render(args: RenderArgs) -> Result<()> {
     Ok(())
 }
 
+fn run_compare(args: CompareArgs) -> Result<()> {
+    for (flag, v) in [("--spp-a", args.spp_a), ("--spp-b", args.spp_b)] {
+        if let Some(v) = v {
+            if !(v > 0.0 && v.is_finite()) {
+                bail!("{flag} must be a positive number, got {v}");
+            }
+        }
+    }
+    if let Some(r) = args.diff_range {
+        if !(r > 0.0 && r.is_finite()) {
+            bail!("--diff-range must be a positive number, got {r}");
+        }
+    }
+    let a = exr::read(&args.a)?;
+    let b = exr::read(&args.b)?;
+    let alpha = penumbra::validation::ALPHA;
+    let cmp = compare::compare(&a, &b, args.spp_a, args.spp_b, alpha)?;
+    let diff_path = args.diff.as_ref().map(|p| p.to_string_lossy().into_owned());
+    let mut diff_range = None;
+    if let Some(path) = &args.diff {
+        let values = compare::signed_difference(&a.rgb, &b.rgb);
+        let (range, note) = match args.diff_range {
+            Some(r) => (r, "set by --diff-range".to_string()),
+            None => (
+                compare::default_diff_range(&values),
+                "99th percentile of |Δ|".to_string(),
+            ),
+        };
+        let title = format!("A − B: {} − {}", file_name(&args.a), file_name(&args.b));
+        penumbra::plot::write_diff_png(
+            path,
+            &penumbra::plot::DiffImage {
+                width: a.width,
+                height: a.height,
+                values: &values,
+                range,
+                range_note: &note,
+                title: &title,
+            },
+        )?;
+        diff_range = Some(range);
+    }
+    let (a_name, b_name) = (args.a.to_string_lossy(), args.b.to_string_lossy());
+    if args.json {
+        let diff = diff_path
+            .as_deref()
+            .zip(diff_range)
+            .map(|(path, range)| compare::DiffJson { path, range });
+        let json = cmp.to_json(&a_name, &b_name, alpha, diff);
+        println!("{}", serde_json::to_string_pretty(&json)?);
+    } else {
+        print!("{}", cmp.text(&a_name, &b_name));
+        if let (Some(p), Some(r)) = (&diff_path, diff_range) {
+            println!("diff image: {p} (colour range ±{r:.4e})");
+        }
+    }
+    Ok(())
+}
+
+fn file_name(p: &std::path::Path) -> String {
+    p.file_name().map_or_else(
+        || p.display().to_string(),
+        |n| n.to_string_lossy().into_owned(),
+    )
+}
+
+fn run_converge(args: ConvergeArgs) -> Result<()> {
+    use penumbra::experiment::{self as ex, SeriesResult, Sweep, SweepMode};
+    let steps = ex::parse_spp_list(&args.spp).map_err(anyhow::Error::msg)?;
+    if args.seeds == 0 {
+        bail!("--seeds must be at least 1");
+    }
+    if let Some(v) = args.reference_spp {
+        if !(v > 0.0 && v.is_finite()) {
+            bail!("--reference-spp must be a positive number, got {v}");
+        }
+    }
+    let sweep = args
+        .sweep
+        .as_deref()
+        .map(Sweep::parse)
+        .transpose()
+        .map_err(anyhow::Error::msg)?;
+    let defines = args
+        .define
+        .iter()
+        .map(|d| parse_define(d))
+        .collect::<Result<Vec<_>>>()?;
+    let image = exr::read(&args.reference)?;
+    let reference = ex::ReferenceImage {
+        spp: args.reference_spp.or(image.spp()),
+        image,
+    };
+    let (variants, mode) = ex::scene_variants(&args.scene, &defines, sweep.as_ref())?;
+    let first_seed = match args.seed {
+        Some(s) => s,
+        None => variants[0].description.sensor.sampler.seed,
+    };
+    let seeds: Vec<u64> = (0..args.seeds as u64)
+        .map(|k| first_seed.wrapping_add(k))
+        .collect();
+    let r = &reference.image;
+    for v in &variants {
+        let film = &v.description.sensor.film;
+        if (film.width as usize, film.height as usize) != (r.width, r.height) {
+            bail!(
+                "the scene renders {}x{}, the reference is {}x{} (set the scene's resolution \
+                 with -D, e.g. -D res={})",
+                film.width,
+                film.height,
+                r.width,
+                r.height,
+                r.width
+            );
+        }
+    }
+    std::fs::create_dir_all(&args.out_dir)
+        .with_context(|| format!("cannot create {}", args.out_dir.display()))?;
+    if !args.quiet {
+        eprintln!(
+            "reference {}: {}x{}, {}, {}",
+            args.reference.display(),
+            r.width,
+            r.height,
+            reference
+                .spp
+                .map_or("spp unknown".into(), |s| format!("{s} spp")),
+            match reference.noise_floor() {
+                Some(f) => format!("noise floor {f:.3e}"),
+                None => "no variance channels: no noise floor, z-test with penumbra's variance \
+                         for both terms"
+                    .into(),
+            }
+        );
+        if mode == Some(SweepMode::Integrator) {
+            if let Some(s) = &sweep {
+                eprintln!(
+                    "the scene does not use ${0}: --sweep sets the path integrator's {0}",
+                    s.name
+                );
+            }
+        }
+    }
+    let mut results: Vec<SeriesResult> = Vec::new();
+    for variant in &variants {
+        let scene = penumbra::scene::build::build(&variant.description)?;
+        if results.is_empty() {
+            for w in &scene.warnings {
+                eprintln!("warning: {w}");
+            }
+        }
+        let mut runs = Vec::new();
+        for &seed in &seeds {
+            let label = if variant.label.is_empty() {
+                format!("seed {seed}")
+            } else {
+                format!("{} seed {seed}", variant.label)
+            };
+            let quiet = args.quiet;
+            let run = ex::run_one(&scene, &steps, seed, args.threads, &reference, &mut |s| {
+                if !quiet {
+                    eprintln!(
+                        "  {label}: {:>6} spp {:>9.3} s {:>7.3} Mpath/s  RMSE {:.4e}  \
+                         relMSE {:.4e}  efficiency {:.4e}{}",
+                        s.spp,
+                        s.seconds,
+                        s.mpaths_per_second,
+                        s.metrics.rmse,
+                        s.metrics.rel_mse,
+                        s.efficiency,
+                        s.z_pass_rate
+                            .map(|z| format!("  z-test pass {:.3}%", 100.0 * z))
+                            .unwrap_or_default()
+                    );
+                }
+            })?;
+            runs.push(run);
+        }
+        results.push(SeriesResult {
+            label: variant.label.clone(),
+            value: variant.value.clone(),
+            runs,
+        });
+    }
+
+    let command = std::iter::once("penumbra".to_string())
+        .chain(std::env::args().skip(1))
+        .collect::<Vec<_>>()
+        .join(" ");
+    let info = ex::ExperimentInfo {
+        scene: args.scene.to_string_lossy().into_owned(),
+        reference: args.reference.to_string_lossy().into_owned(),
+        reference_spp: reference.spp,
+        reference_variance: r.variance.is_some(),
+        noise_floor: reference.noise_floor(),
+        width: r.width,
+        height: r.height,
+        defines: defines.iter().cloned().collect(),
+        sweep: sweep.as_ref().map(|s| ex::SweepInfo {
+            param: s.name.clone(),
+            values: s.values.clone(),
+            mode: match mode {
+                Some(SweepMode::Integrator) => "integrator".into(),
+                _ => "define".into(),
+            },
+        }),
+        seeds: seeds.clone(),
+        spp: steps.clone(),
+        threads: args.threads,
+        penumbra_version: penumbra::VERSION.to_string(),
+        command,
+    };
+    let param = sweep.as_ref().map(|s| s.name.as_str());
+    let csv_path = args.out_dir.join("converge.csv");
+    let json_path = args.out_dir.join("converge.json");
+    let png_path = args.out_dir.join("converge.png");
+    std::fs::write(&csv_path, ex::to_csv(param, &results))
+        .with_context(|| format!("cannot write {}", csv_path.display()))?;
+    std::fs::write(&json_path, ex::to_json(&info, &results)?)
+        .with_context(|| format!("cannot write {}", json_path.display()))?;
+    let series: Vec<_> = results.iter().map(|r| r.plot_series()).collect();
+    let title = format!(
+        "{} vs. {}{}{}",
+        file_name(&args.scene),
+        file_name(&args.reference),
+        sweep
+            .as_ref()
+            .map(|s| format!(", sweep of {}", s.name))
+            .unwrap_or_default(),
+        if seeds.len() > 1 {
+            format!(", {} seeds (mean, min-max)", seeds.len())
+        } else {
+            String::new()
+        }
+    );
+    penumbra::plot::write_series_png(
+        &png_path,
+        &penumbra::plot::SeriesPlot {
+            title: &title,
+            series: &series,
+            floor: reference.noise_floor(),
+            y_desc: "RMSE vs. reference",
+        },
+    )?;
+
+    for res in &results {
+        if !res.label.is_empty() {
+            println!("\n## {}\n", res.label);
+        }
+        if seeds.len() > 1 {
+            println!(
+                "{} seeds ({}..={}); mean over seeds, RMSE as mean ± std [min, max]\n",
+                seeds.len(),
+                seeds[0],
+                seeds[seeds.len() - 1]
+            );
+        }
+        print!("{}", ex::table(res));
+    }
+    if results.len() > 1 {
+        println!(
+            "\n| {} | time (s) | RMSE | efficiency | slope |",
+            param.unwrap_or("variant")
+        );
+        println!("|---|---:|---:|---:|---:|");
+        for res in &results {
+            let last = res.summary().pop();
+            let slope = res.slope_spread();
+            println!(
+                "| {} | {} | {} | {} | {} |",
+                res.value.as_deref().unwrap_or(""),
+                last.as_ref()
+                    .map_or("–".into(), |l| format!("{:.3}", l.seconds.mean)),
+                last.as_ref()
+                    .map_or("–".into(), |l| format!("{:.4e}", l.rmse.mean)),
+                last.as_ref()
+                    .map_or("–".into(), |l| format!("{:.4e}", l.efficiency.mean)),
+                slope.map_or("n/a".into(), |s| format!("{:.3}", s.mean))
+            );
+        }
+    }
+    if !args.quiet {
+        eprintln!(
+            "wrote {}, {} and {}",
+            csv_path.display(),
+            json_path.display(),
+            png_path.display()
+        );
+    }
+    Ok(())
+}
+
 fn main() {
     let cli = Cli::parse();
     let result = match cli.command {
         Command::Render(args) => run_render(args),
+        Command::Compare(args) => run_compare(args),
+        Command::Converge(args) => run_converge(args),
     };
     if let Err(e) = result {
         eprintln!("error: {e:#}");

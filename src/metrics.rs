@@ -4,10 +4,24 @@
 use crate::io::exr::RgbImage;
 use crate::stats::{normal_critical_z, sidak};
 
-/// Per-channel mean of an image.
+/// Per-channel mean of an image over its finite values (NaN and infinite values, counted by
+/// [`nonfinite_pixels`] and [`ErrorMetrics::nonfinite`], are left out; 0 if none is finite).
 pub fn channel_means(rgb: &[[f32; 3]]) -> [f64; 3] {
-    let n = rgb.len().max(1) as f64;
-    std::array::from_fn(|c| rgb.iter().map(|p| p[c] as f64).sum::<f64>() / n)
+    std::array::from_fn(|c| {
+        let (mut sum, mut n) = (0.0, 0usize);
+        for v in rgb.iter().map(|p| p[c] as f64).filter(|v| v.is_finite()) {
+            sum += v;
+            n += 1;
+        }
+        sum / n.max(1) as f64
+    })
+}
+
+/// Pixels with at least one NaN or infinite channel.
+pub fn nonfinite_pixels(rgb: &[[f32; 3]]) -> usize {
+    rgb.iter()
+        .filter(|p| p.iter().any(|v| !v.is_finite()))
+        .count()
 }
 
 /// Error metrics of `a` against the reference `b` (same size), over all pixel-channels.
@@ -145,6 +159,14 @@ mod tests {
         assert_eq!(m.mean_a, [0.5, 1.0, 1.5]);
         let m = error_metrics(&[[f32::NAN, 0.0, 0.0]], &[[0.0; 3]]);
         assert_eq!(m.nonfinite, 1);
+        // Means leave non-finite values out, per channel.
+        let c = [
+            [f32::NAN, 1.0, 2.0],
+            [3.0, f32::INFINITY, 4.0],
+            [5.0, 3.0, 6.0],
+        ];
+        assert_eq!(channel_means(&c), [4.0, 2.0, 4.0]);
+        assert_eq!(nonfinite_pixels(&c), 2);
     }
 
     #[test]

@@ -18,6 +18,17 @@ pub struct RgbImage {
     pub attributes: BTreeMap<String, String>,
 }
 
+impl RgbImage {
+    /// The samples per pixel recorded in the header attribute `spp` (penumbra and
+    /// validation/mitsuba/render_reference.py write it), if present and a positive number.
+    pub fn spp(&self) -> Option<f64> {
+        self.attributes
+            .get("spp")
+            .and_then(|s| s.trim().parse::<f64>().ok())
+            .filter(|v| v.is_finite() && *v > 0.0)
+    }
+}
+
 /// A header attribute value to write.
 #[derive(Clone, Debug)]
 pub enum Attribute {
