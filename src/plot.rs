@@ -195,16 +195,32 @@ where
     Ok(())
 }
 
-/// Draws the plot into an RGB8 buffer of [`PLOT_SIZE`].
-pub fn draw_convergence(plot: &ConvergencePlot) -> Result<Vec<u8>> {
+type Area<'a> = DrawingArea<BitMapBackend<'a>, plotters::coord::Shift>;
+
+/// A white RGB8 buffer of [`PLOT_SIZE`] with a title and two side-by-side panels, drawn by
+/// `draw(left, right)`.
+fn two_panels(
+    title: &str,
+    title_size: u32,
+    draw: impl FnOnce(&Area, &Area) -> Result<()>,
+) -> Result<Vec<u8>> {
     register_font()?;
     let (w, h) = PLOT_SIZE;
     let mut buf = vec![255u8; (w * h * 3) as usize];
     {
         let root = BitMapBackend::with_buffer(&mut buf, (w, h)).into_drawing_area();
         root.fill(&WHITE).map_err(plot_err)?;
-        let root = root.titled(plot.title, (FONT, 26)).map_err(plot_err)?;
+        let root = root.titled(title, (FONT, title_size)).map_err(plot_err)?;
         let (left, right) = root.split_horizontally(w / 2);
+        draw(&left, &right)?;
+        root.present().map_err(plot_err)?;
+    }
+    Ok(buf)
+}
+
+/// Draws the plot into an RGB8 buffer of [`PLOT_SIZE`].
+pub fn draw_convergence(plot: &ConvergencePlot) -> Result<Vec<u8>> {
+    two_panels(plot.title, 26, |left, right| {
         let sigma2 = plot.sample_variance;
         let floor = plot.fit.map(|f| f.floor).filter(|f| *f > 0.0);
         let used = plot.fit.map_or(0, |f| f.used);
@@ -223,7 +239,7 @@ pub fn draw_convergence(plot: &ConvergencePlot) -> Result<Vec<u8>> {
             (format!("fit over {used} steps: slope {:.3}", l.slope), pts)
         });
         draw_panel(
-            &left,
+            left,
             &Panel {
                 caption: "error vs. samples per pixel".into(),
                 x_desc: "samples per pixel",
@@ -249,7 +265,7 @@ pub fn draw_convergence(plot: &ConvergencePlot) -> Result<Vec<u8>> {
             .map(|s| (s.seconds, s.metrics.rmse))
             .collect();
         draw_panel(
-            &right,
+            right,
             &Panel {
                 caption: "error vs. wall time".into(),
                 x_desc: "render time (s)",
@@ -264,9 +280,8 @@ pub fn draw_convergence(plot: &ConvergencePlot) -> Result<Vec<u8>> {
                 floor,
             },
         )?;
-        root.present().map_err(plot_err)?;
-    }
-    Ok(buf)
+        Ok(())
+    })
 }
 
 /// Draws the plot and writes it to `path` as PNG.
@@ -464,19 +479,11 @@ where
 
 /// Draws a multi-series plot into an RGB8 buffer of [`PLOT_SIZE`].
 pub fn draw_series_plot(plot: &SeriesPlot) -> Result<Vec<u8>> {
-    register_font()?;
-    let (w, h) = PLOT_SIZE;
-    let mut buf = vec![255u8; (w * h * 3) as usize];
-    {
-        let root = BitMapBackend::with_buffer(&mut buf, (w, h)).into_drawing_area();
-        root.fill(&WHITE).map_err(plot_err)?;
-        let root = root.titled(plot.title, (FONT, 24)).map_err(plot_err)?;
-        let (left, right) = root.split_horizontally(w / 2);
-        draw_series_panel(&left, plot, XAxis::Spp)?;
-        draw_series_panel(&right, plot, XAxis::Seconds)?;
-        root.present().map_err(plot_err)?;
-    }
-    Ok(buf)
+    two_panels(plot.title, 24, |left, right| {
+        draw_series_panel(left, plot, XAxis::Spp)?;
+        draw_series_panel(right, plot, XAxis::Seconds)?;
+        Ok(())
+    })
 }
 
 /// Draws a multi-series plot and writes it to `path` as PNG.

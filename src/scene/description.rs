@@ -268,6 +268,21 @@ impl<'a> Props<'a> {
     }
 }
 
+/// The required `filename` string parameter, resolved relative to the directory of the file
+/// that declares it (Mitsuba resolves relative to the scene file).
+fn file_parameter(p: &mut Props, o: &Object) -> Result<PathBuf> {
+    let (name, _) = p
+        .string("filename")?
+        .ok_or_else(|| Error::scene(&o.location, format!("{} needs a 'filename'", describe(o))))?;
+    let base = o
+        .location
+        .file
+        .parent()
+        .map(PathBuf::from)
+        .unwrap_or_default();
+    Ok(base.join(name))
+}
+
 fn unsupported_plugin(o: &Object) -> Error {
     Error::scene(
         &o.location,
@@ -659,22 +674,11 @@ fn shape_desc(o: &Object) -> Result<ShapeDesc> {
             positive(radius, "radius", o)?;
             ShapeKind::Sphere { center, radius }
         }
-        "obj" => {
-            let (name, _) = p.string("filename")?.ok_or_else(|| {
-                Error::scene(&o.location, format!("{} needs a 'filename'", describe(o)))
-            })?;
-            let base = o
-                .location
-                .file
-                .parent()
-                .map(PathBuf::from)
-                .unwrap_or_default();
-            ShapeKind::Obj {
-                filename: base.join(name),
-                face_normals: p.boolean("face_normals", false)?,
-                flip_tex_coords: p.boolean("flip_tex_coords", true)?,
-            }
-        }
+        "obj" => ShapeKind::Obj {
+            filename: file_parameter(&mut p, o)?,
+            face_normals: p.boolean("face_normals", false)?,
+            flip_tex_coords: p.boolean("flip_tex_coords", true)?,
+        },
         _ => return Err(unsupported_plugin(o)),
     };
     p.finish()?;
@@ -834,15 +838,7 @@ fn scene_emitter_desc(o: &Object) -> Result<EmitterDesc> {
             }
         }
         "envmap" => {
-            let (name, _) = p.string("filename")?.ok_or_else(|| {
-                Error::scene(&o.location, format!("{} needs a 'filename'", describe(o)))
-            })?;
-            let base = o
-                .location
-                .file
-                .parent()
-                .map(PathBuf::from)
-                .unwrap_or_default();
+            let filename = file_parameter(&mut p, o)?;
             let scale = p.float("scale", 1.0)?;
             if !(scale >= 0.0 && scale.is_finite()) {
                 return Err(Error::scene(
@@ -859,7 +855,7 @@ fn scene_emitter_desc(o: &Object) -> Result<EmitterDesc> {
                 }
             }
             EmitterDesc::EnvMap {
-                filename: base.join(name),
+                filename,
                 scale,
                 to_world: p.transform("to_world")?,
                 location: o.location.clone(),
