@@ -52,6 +52,7 @@ fn render_image(xml: &str, spp: u32, seed: u64) -> (RgbImage, RenderOutput) {
 fn cornell_box_is_invariant_under_scale_and_translation() {
     let spp = 64;
     let (unit, _) = render_image(&transformed_cornell(1.0, 0.0), spp, 1);
+    let (unit_same_seed, _) = render_image(&transformed_cornell(1.0, 0.0), spp, 2);
     let m_unit = channel_means(&unit.rgb);
     for (s, o) in [
         (1e-4, 0.0),
@@ -65,6 +66,12 @@ fn cornell_box_is_invariant_under_scale_and_translation() {
     ] {
         let (img, _) = render_image(&transformed_cornell(s, o), spp, 2);
         let m = channel_means(&img.rgb);
+        // Same seed as `unit_same_seed`: how far from identical the transformed render is.
+        let same = penumbra::metrics::error_metrics(&img.rgb, &unit_same_seed.rgb);
+        eprintln!(
+            "scale {s:e} offset {o:e}: same-seed max abs pixel difference {:.3e}, RMSE {:.3e}",
+            same.max_abs, same.rmse
+        );
         for c in 0..3 {
             let rel = (m[c] - m_unit[c]).abs() / m_unit[c];
             assert!(
@@ -75,6 +82,14 @@ fn cornell_box_is_invariant_under_scale_and_translation() {
             );
         }
         let t = z_test(&img, spp as f64, &unit, spp as f64, 0.01).unwrap();
+        eprintln!(
+            "scale {s:e} offset {o:e}: mean rel. diff R {:+.4}% G {:+.4}% B {:+.4}%, z-test pass {:.4}%, max |z| {:.2}",
+            100.0 * (m[0] / m_unit[0] - 1.0),
+            100.0 * (m[1] / m_unit[1] - 1.0),
+            100.0 * (m[2] / m_unit[2] - 1.0),
+            100.0 * t.pass_rate(),
+            t.z_max
+        );
         assert!(
             t.passed(),
             "scale {s} offset {o}: z-test {} of {} fail, max |z| {:.2}",
@@ -216,6 +231,82 @@ fn no_ray_slips_through_a_closed_mesh_at_its_edges_and_vertices() {
             hits += 1;
         }
         assert_eq!(hits, targets.len());
+    }
+    std::fs::remove_dir_all(&dir).ok();
+}
+
+/// A mesh with duplicated vertices (the same position under several indices) and a huge range
+/// of coordinates within one mesh (a 1e-3 triangle fan next to 1e6-sized triangles): rays aimed
+/// at the small fan's vertices and edges hit it, and a ray spawned from every hit never hits
+/// the triangle it leaves (the huge triangles' coordinates do not degrade the small ones).
+#[test]
+fn duplicate_vertices_and_huge_coordinate_ranges_in_one_mesh() {
+    let dir = std::env::temp_dir().join(format!("penumbra-ranges-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let s = 1e-3f32;
+    let mut obj = String::new();
+    // small fan around the origin in z = 0, every triangle with its own copies of the
+    // centre and rim vertices (duplicates)
+    for k in 0..8 {
+        let a0 = k as f32 * std::f32::consts::FRAC_PI_4;
+        let a1 = a0 + std::f32::consts::FRAC_PI_4;
+        obj += "v 0 0 0\n";
+        obj += &format!("v {} {} 0\n", s * a0.cos(), s * a0.sin());
+        obj += &format!("v {} {} 0\n", s * a1.cos(), s * a1.sin());
+    }
+    // huge triangles far away in the same mesh
+    obj += "v 1e6 1e6 -5\nv -1e6 1e6 -5\nv 0 -1e6 -5\nv 1e6 -1e6 50000\nv 1e6 1e6 50000\nv 2e6 0 -50000\n";
+    for k in 0..8 {
+        obj += &format!("f {} {} {}\n", 3 * k + 1, 3 * k + 2, 3 * k + 3);
+    }
+    obj += "f 25 26 27\nf 28 29 30\n";
+    std::fs::write(dir.join("ranges.obj"), obj).unwrap();
+    let xml = r#"<scene version="3.0.0"><sensor type="perspective"><float name="fov" value="30"/>
+        <transform name="to_world"><lookat origin="0,0,1" target="0,0,0" up="0,1,0"/></transform>
+        <film type="hdrfilm"><integer name="width" value="2"/><integer name="height" value="2"/><rfilter type="box"/></film></sensor>
+        <shape type="obj"><string name="filename" value="ranges.obj"/><boolean name="face_normals" value="true"/></shape></scene>"#;
+    let scene = Scene::from_xml_str(xml, &dir.join("s.xml"), &[]).unwrap();
+    // camera-relative: the fan sits at z = -1
+    let centre = Vec3::new(0.0, 0.0, -1.0);
+    let mut targets = vec![centre];
+    for k in 0..8 {
+        let a = k as f32 * std::f32::consts::FRAC_PI_4;
+        let rim = centre + Vec3::new(s * a.cos(), s * a.sin(), 0.0);
+        targets.push(rim * 0.999 + centre * 0.001); // just inside the rim vertex
+        targets.push((centre + rim) * 0.5); // on a shared interior edge
+    }
+    for (i, t) in targets.iter().enumerate() {
+        for d in [
+            Vec3::new(0.1, 0.2, -1.0),
+            Vec3::new(-0.3, 0.05, -1.0),
+            Vec3::new(0.0, 0.0, -1.0),
+        ] {
+            let d = d.normalize();
+            let o = *t - d * 0.5;
+            let si = scene
+                .intersect(&Ray::new(o, d, f32::INFINITY))
+                .unwrap_or_else(|| panic!("target {i}: the ray slipped through the fan"));
+            assert!(
+                (si.p - *t).length() < 1e-6,
+                "target {i}: hit {} instead of {}",
+                si.p,
+                t
+            );
+            for w in [
+                si.ng,
+                -si.ng,
+                (si.ng + Vec3::X).normalize(),
+                (Vec3::Y - si.ng).normalize(),
+            ] {
+                if let Some(next) = scene.intersect(&Scene::spawn_ray(&si, w)) {
+                    assert!(
+                        (next.p - si.p).length() > 1.0,
+                        "target {i}: a ray leaving the fan re-hit it at {}",
+                        next.p
+                    );
+                }
+            }
+        }
     }
     std::fs::remove_dir_all(&dir).ok();
 }
