@@ -133,7 +133,7 @@ impl Accel {
         self.prims.len()
     }
 
-    #[inline]
+    #[inline(always)]
     fn test(
         prim: &Primitive,
         shear: &RayShear,

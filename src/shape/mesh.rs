@@ -212,7 +212,7 @@ impl RayShear {
 
 /// Watertight ray/triangle intersection. Returns (t, b1, b2) for a hit with
 /// 0 < t < tmax, where t is conservatively positive.
-#[inline]
+#[inline(always)]
 pub fn intersect_triangle(r: &RayShear, p: &[Vec3; 3], tmax: f32) -> Option<(f32, f32, f32)> {
     match r.kz {
         0 => intersect_permuted::<0>(r, p, tmax),
