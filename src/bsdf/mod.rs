@@ -3,10 +3,28 @@
 //! comes from; `eval` includes the cosine foreshortening |cos θo|, and `sample` returns the
 //! weight eval / pdf. Closed set of models, dispatched by `match`.
 
+pub mod conductor;
+pub mod dielectric;
 pub mod diffuse;
+pub mod fresnel;
+pub mod microfacet;
+pub mod plastic;
+pub mod presets;
+pub mod roughconductor;
+pub mod roughdielectric;
+pub mod roughplastic;
+pub mod thindielectric;
 pub mod twosided;
 
+pub use conductor::Conductor;
+pub use dielectric::Dielectric;
 pub use diffuse::Diffuse;
+pub use microfacet::{Microfacet, MicrofacetType};
+pub use plastic::Plastic;
+pub use roughconductor::RoughConductor;
+pub use roughdielectric::RoughDielectric;
+pub use roughplastic::RoughPlastic;
+pub use thindielectric::ThinDielectric;
 pub use twosided::TwoSided;
 
 use glam::{Vec2, Vec3};
@@ -33,6 +51,13 @@ pub struct BsdfSample {
 pub enum Bsdf {
     Diffuse(Diffuse),
     TwoSided(TwoSided),
+    Conductor(Conductor),
+    RoughConductor(RoughConductor),
+    Dielectric(Dielectric),
+    ThinDielectric(ThinDielectric),
+    RoughDielectric(RoughDielectric),
+    Plastic(Plastic),
+    RoughPlastic(RoughPlastic),
 }
 
 impl Bsdf {
@@ -41,6 +66,13 @@ impl Bsdf {
         match self {
             Bsdf::Diffuse(b) => b.eval(wi, wo),
             Bsdf::TwoSided(b) => b.eval(wi, wo),
+            Bsdf::Conductor(b) => b.eval(wi, wo),
+            Bsdf::RoughConductor(b) => b.eval(wi, wo),
+            Bsdf::Dielectric(b) => b.eval(wi, wo),
+            Bsdf::ThinDielectric(b) => b.eval(wi, wo),
+            Bsdf::RoughDielectric(b) => b.eval(wi, wo),
+            Bsdf::Plastic(b) => b.eval(wi, wo),
+            Bsdf::RoughPlastic(b) => b.eval(wi, wo),
         }
     }
 
@@ -49,6 +81,13 @@ impl Bsdf {
         match self {
             Bsdf::Diffuse(b) => b.pdf(wi, wo),
             Bsdf::TwoSided(b) => b.pdf(wi, wo),
+            Bsdf::Conductor(b) => b.pdf(wi, wo),
+            Bsdf::RoughConductor(b) => b.pdf(wi, wo),
+            Bsdf::Dielectric(b) => b.pdf(wi, wo),
+            Bsdf::ThinDielectric(b) => b.pdf(wi, wo),
+            Bsdf::RoughDielectric(b) => b.pdf(wi, wo),
+            Bsdf::Plastic(b) => b.pdf(wi, wo),
+            Bsdf::RoughPlastic(b) => b.pdf(wi, wo),
         }
     }
 
@@ -57,15 +96,35 @@ impl Bsdf {
         match self {
             Bsdf::Diffuse(b) => b.sample(wi, u2),
             Bsdf::TwoSided(b) => b.sample(wi, u1, u2),
+            Bsdf::Conductor(b) => b.sample(wi, u2),
+            Bsdf::RoughConductor(b) => b.sample(wi, u2),
+            Bsdf::Dielectric(b) => b.sample(wi, u1),
+            Bsdf::ThinDielectric(b) => b.sample(wi, u1),
+            Bsdf::RoughDielectric(b) => b.sample(wi, u1, u2),
+            Bsdf::Plastic(b) => b.sample(wi, u1, u2),
+            Bsdf::RoughPlastic(b) => b.sample(wi, u1, u2),
         }
     }
 
     /// Whether the BSDF has a non-delta lobe on the side `wi` lies on: only then does
-    /// emitter sampling (NEE) make sense.
+    /// emitter sampling (NEE) make sense. (A one-sided BSDF seen from behind has nothing.)
     pub fn has_smooth_lobe(&self, wi: Vec3) -> bool {
         match self {
             Bsdf::Diffuse(_) => true,
-            Bsdf::TwoSided(b) => b.side(wi).has_smooth_lobe(wi),
+            Bsdf::TwoSided(b) => b.has_smooth_lobe(wi),
+            Bsdf::Conductor(_) | Bsdf::Dielectric(_) | Bsdf::ThinDielectric(_) => false,
+            Bsdf::RoughConductor(_) | Bsdf::Plastic(_) | Bsdf::RoughPlastic(_) => wi.z > 0.0,
+            Bsdf::RoughDielectric(_) => true,
+        }
+    }
+
+    /// Whether the BSDF can transmit light to the other side (then reciprocity of `eval`
+    /// does not hold in radiance mode, and albedos count transmission too).
+    pub fn is_transmissive(&self) -> bool {
+        match self {
+            Bsdf::Dielectric(_) | Bsdf::ThinDielectric(_) | Bsdf::RoughDielectric(_) => true,
+            Bsdf::TwoSided(b) => b.front.is_transmissive() || b.back.is_transmissive(),
+            _ => false,
         }
     }
 }

@@ -16,11 +16,12 @@ fn flip(v: Vec3) -> Vec3 {
 }
 
 impl TwoSided {
-    pub(super) fn side(&self, wi: Vec3) -> &Bsdf {
+    /// Whether the side `wi` lies on has a smooth lobe (the back BSDF sees `wi` mirrored).
+    pub(super) fn has_smooth_lobe(&self, wi: Vec3) -> bool {
         if wi.z < 0.0 {
-            &self.back
+            self.back.has_smooth_lobe(flip(wi))
         } else {
-            &self.front
+            self.front.has_smooth_lobe(wi)
         }
     }
 

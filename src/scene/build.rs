@@ -244,7 +244,98 @@ fn bsdf(d: &BsdfDesc) -> Bsdf {
             front: Box::new(bsdf(front)),
             back: Box::new(bsdf(back)),
         }),
+        BsdfDesc::Conductor {
+            eta,
+            k,
+            specular_reflectance,
+        } => Bsdf::Conductor(crate::bsdf::Conductor {
+            eta: eta.as_vec3(),
+            k: k.as_vec3(),
+            specular_reflectance: specular_reflectance.as_vec3(),
+        }),
+        BsdfDesc::RoughConductor {
+            distribution,
+            eta,
+            k,
+            specular_reflectance,
+        } => Bsdf::RoughConductor(crate::bsdf::RoughConductor {
+            distribution: microfacet(distribution),
+            eta: eta.as_vec3(),
+            k: k.as_vec3(),
+            specular_reflectance: specular_reflectance.as_vec3(),
+        }),
+        BsdfDesc::Dielectric {
+            int_ior,
+            ext_ior,
+            specular_reflectance,
+            specular_transmittance,
+        } => Bsdf::Dielectric(crate::bsdf::Dielectric {
+            eta: (int_ior / ext_ior) as f32,
+            specular_reflectance: specular_reflectance.as_vec3(),
+            specular_transmittance: specular_transmittance.as_vec3(),
+        }),
+        BsdfDesc::ThinDielectric {
+            int_ior,
+            ext_ior,
+            specular_reflectance,
+            specular_transmittance,
+        } => Bsdf::ThinDielectric(crate::bsdf::ThinDielectric {
+            eta: (int_ior / ext_ior) as f32,
+            specular_reflectance: specular_reflectance.as_vec3(),
+            specular_transmittance: specular_transmittance.as_vec3(),
+        }),
+        BsdfDesc::RoughDielectric {
+            distribution,
+            int_ior,
+            ext_ior,
+            specular_reflectance,
+            specular_transmittance,
+        } => Bsdf::RoughDielectric(crate::bsdf::RoughDielectric {
+            distribution: microfacet(distribution),
+            eta: (int_ior / ext_ior) as f32,
+            specular_reflectance: specular_reflectance.as_vec3(),
+            specular_transmittance: specular_transmittance.as_vec3(),
+        }),
+        BsdfDesc::Plastic {
+            int_ior,
+            ext_ior,
+            diffuse_reflectance,
+            specular_reflectance,
+            nonlinear,
+        } => Bsdf::Plastic(crate::bsdf::Plastic::new(
+            (int_ior / ext_ior) as f32,
+            diffuse_reflectance.as_vec3(),
+            specular_reflectance.as_vec3(),
+            *nonlinear,
+        )),
+        BsdfDesc::RoughPlastic {
+            distribution,
+            int_ior,
+            ext_ior,
+            diffuse_reflectance,
+            specular_reflectance,
+            nonlinear,
+        } => Bsdf::RoughPlastic(crate::bsdf::RoughPlastic::new(
+            microfacet(distribution),
+            (int_ior / ext_ior) as f32,
+            diffuse_reflectance.as_vec3(),
+            specular_reflectance.as_vec3(),
+            *nonlinear,
+        )),
     }
+}
+
+fn microfacet(d: &crate::scene::description::MicrofacetDesc) -> crate::bsdf::Microfacet {
+    use crate::scene::description::MicrofacetKind;
+    crate::bsdf::Microfacet::new(
+        match d.kind {
+            MicrofacetKind::Beckmann => crate::bsdf::MicrofacetType::Beckmann,
+            MicrofacetKind::Ggx => crate::bsdf::MicrofacetType::Ggx,
+        },
+        d.alpha_u as f32,
+        d.alpha_v as f32,
+        d.sample_visible,
+    )
 }
 
 /// Local-space quads (four corners, counter-clockwise seen from the side the normal points

@@ -50,3 +50,16 @@ pub fn image_mean_and_se(out: &RenderOutput, spp: u32) -> ([f64; 3], [f64; 3]) {
     }
     (mean, se)
 }
+
+/// Builds the BSDF of a `<bsdf>` element through the scene parser (as a rectangle's BSDF).
+pub fn bsdf_from_xml(bsdf: &str) -> penumbra::bsdf::Bsdf {
+    let xml = format!(
+        r#"<scene version="3.0.0">
+            <sensor type="perspective"><float name="fov" value="45"/>
+                <film type="hdrfilm"><integer name="width" value="4"/>
+                    <integer name="height" value="4"/><rfilter type="box"/></film></sensor>
+            <shape type="rectangle">{bsdf}</shape></scene>"#
+    );
+    let scene = scene_from_str(&xml);
+    scene.bsdfs[scene.shapes[0].bsdf as usize].clone()
+}

@@ -1,0 +1,78 @@
+//! Mitsuba's `roughconductor`: the Cook–Torrance microfacet BRDF in the form of Walter,
+//! Marschner, Li and Torrance 2007 ("Microfacet Models for Refraction through Rough
+//! Surfaces", eq. 20): f(wi, wo) = F(wi·m) D(m) G(wi, wo, m) / (4 |cos θi| |cos θo|) with the
+//! half vector m, the exact conductor Fresnel term of η + ik and `specular_reflectance`.
+//! Beckmann or GGX, isotropic or anisotropic (see [`super::microfacet`]); sampled by visible
+//! normals (default) or by D(m) cos θm, with the reflection Jacobian 1 / (4 |wo·m|)
+//! (Walter et al. eq. 14). One-sided.
+
+use super::fresnel::{fresnel_conductor, reflect};
+use super::microfacet::Microfacet;
+use super::{BsdfSample, Spectrum};
+use glam::{Vec2, Vec3};
+
+#[derive(Clone, Debug)]
+pub struct RoughConductor {
+    pub distribution: Microfacet,
+    pub eta: Spectrum,
+    pub k: Spectrum,
+    pub specular_reflectance: Spectrum,
+}
+
+impl RoughConductor {
+    pub fn eval(&self, wi: Vec3, wo: Vec3) -> Spectrum {
+        if wi.z <= 0.0 || wo.z <= 0.0 {
+            return Spectrum::ZERO;
+        }
+        let Some(m) = (wi + wo).try_normalize() else {
+            return Spectrum::ZERO;
+        };
+        let d = self.distribution.d(m);
+        if d == 0.0 {
+            return Spectrum::ZERO;
+        }
+        let g = self.distribution.g_eval(wi, wo, m);
+        let f = fresnel_conductor(wi.dot(m), self.eta, self.k);
+        let v = (d as f64 * g as f64 / (4.0 * wi.z as f64)) as f32;
+        f * self.specular_reflectance * v
+    }
+
+    pub fn pdf(&self, wi: Vec3, wo: Vec3) -> f32 {
+        if wi.z <= 0.0 || wo.z <= 0.0 {
+            return 0.0;
+        }
+        let Some(m) = (wi + wo).try_normalize() else {
+            return 0.0;
+        };
+        let dot = wo.dot(m);
+        if dot <= 0.0 {
+            return 0.0;
+        }
+        let p = self.distribution.pdf(wi, m) as f64 / (4.0 * dot as f64);
+        p as f32
+    }
+
+    pub fn sample(&self, wi: Vec3, u2: Vec2) -> Option<BsdfSample> {
+        if wi.z <= 0.0 {
+            return None;
+        }
+        let (m, pdf_m) = self.distribution.sample(wi, u2)?;
+        let wo = reflect(wi, m);
+        let dot = wo.dot(m);
+        if wo.z <= 0.0 || dot <= 0.0 {
+            return None;
+        }
+        let pdf = (pdf_m as f64 / (4.0 * dot as f64)) as f32;
+        if !(pdf > 0.0 && pdf.is_finite()) {
+            return None;
+        }
+        let weight = self.eval(wi, wo) / pdf;
+        weight.is_finite().then_some(BsdfSample {
+            wo,
+            pdf,
+            weight,
+            eta: 1.0,
+            delta: false,
+        })
+    }
+}

@@ -1,0 +1,58 @@
+//! Mitsuba's `thindielectric`: a thin slab of dielectric (e.g. a window pane) with two
+//! parallel smooth interfaces and no absorption inside. Light is reflected with the total
+//! reflectance of the infinite series of internal reflections, R' = R + T² R / (1 − R²)
+//! (T = 1 − R, R the single-interface Fresnel reflectance), and otherwise passes straight
+//! through undeflected (wo = −wi); both lobes are Dirac deltas. Two-sided; the medium on
+//! both sides is the same, so no radiance scaling (η = 1 along the path).
+
+use super::fresnel::fresnel_dielectric;
+use super::{BsdfSample, Spectrum};
+use glam::Vec3;
+
+#[derive(Clone, Debug)]
+pub struct ThinDielectric {
+    /// int_ior / ext_ior.
+    pub eta: f32,
+    pub specular_reflectance: Spectrum,
+    pub specular_transmittance: Spectrum,
+}
+
+impl ThinDielectric {
+    /// Total reflectance R' of the slab at incidence cosine |cos θ|.
+    pub fn reflectance(&self, cos_theta: f32) -> f32 {
+        let r = fresnel_dielectric(cos_theta.abs(), self.eta).f;
+        if r < 1.0 {
+            let t = 1.0 - r;
+            r + t * t * r / (1.0 - r * r)
+        } else {
+            1.0
+        }
+    }
+
+    pub fn eval(&self, _wi: Vec3, _wo: Vec3) -> Spectrum {
+        Spectrum::ZERO
+    }
+
+    pub fn pdf(&self, _wi: Vec3, _wo: Vec3) -> f32 {
+        0.0
+    }
+
+    pub fn sample(&self, wi: Vec3, u1: f32) -> Option<BsdfSample> {
+        if wi.z == 0.0 || !wi.is_finite() {
+            return None;
+        }
+        let r = self.reflectance(wi.z);
+        let (wo, pdf, weight) = if u1 < r {
+            (Vec3::new(-wi.x, -wi.y, wi.z), r, self.specular_reflectance)
+        } else {
+            (-wi, 1.0 - r, self.specular_transmittance)
+        };
+        Some(BsdfSample {
+            wo,
+            pdf,
+            weight,
+            eta: 1.0,
+            delta: true,
+        })
+    }
+}
