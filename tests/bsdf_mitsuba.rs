@@ -7,7 +7,6 @@
 mod common;
 use common::*;
 use glam::{Vec2, Vec3};
-use penumbra::bsdf::Bsdf;
 
 struct Case {
     name: String,

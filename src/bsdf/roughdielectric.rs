@@ -115,6 +115,10 @@ impl RoughDielectric {
         }
         let sign = wi.z.signum();
         let (m, _) = self.sampling_distribution(wi).sample(wi * sign, u2)?;
+        // Without visible-normal sampling, m may face away from wi: no light arrives there.
+        if wi.dot(m) * sign <= 0.0 {
+            return None;
+        }
         let fr = fresnel_dielectric(wi.dot(m), self.eta);
         let (wo, eta) = if u1 < fr.f {
             let wo = reflect(wi, m);
