@@ -256,7 +256,7 @@ impl Magnify {
         ((l.x * l.x + l.y * l.y).sqrt().atan2(l.z), l.y.atan2(l.x))
     }
 
-    fn from_polar(&self, theta: f64, phi: f64) -> glam::DVec3 {
+    fn direction_at(&self, theta: f64, phi: f64) -> glam::DVec3 {
         self.frame
             * glam::DVec3::new(
                 theta.sin() * phi.cos(),
@@ -267,7 +267,7 @@ impl Magnify {
 
     fn forward(&self, d: glam::DVec3) -> glam::DVec3 {
         let (theta, phi) = self.polar(d);
-        self.from_polar(2.0 * (self.s * (0.5 * theta).tan()).atan(), phi)
+        self.direction_at(2.0 * (self.s * (0.5 * theta).tan()).atan(), phi)
     }
 
     /// The pre-image of a direction and dω/dω' there.
@@ -276,7 +276,7 @@ impl Magnify {
         let r2 = (0.5 * t2).tan();
         let r = r2 / self.s;
         let jac = (1.0 + r2 * r2).powi(2) / (self.s * self.s * (1.0 + r * r).powi(2));
-        (self.from_polar(2.0 * r.atan(), phi), jac)
+        (self.direction_at(2.0 * r.atan(), phi), jac)
     }
 }
 

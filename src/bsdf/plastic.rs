@@ -12,9 +12,9 @@
 //!   Surfaces"; Mitsuba's documented plastic model), computed by quadrature.
 //!
 //! Sampling picks the specular lobe with probability ∝ F(cos θi) · w_s against
-//! (1 − F(cos θi)) (1 − w_s), w_s = mean(specular_reflectance) / (mean(specular_reflectance)
-//! + mean(diffuse_reflectance)), as Mitsuba does. eval and pdf cover the diffuse (smooth)
-//! lobe only; the delta lobe is reported by `sample` with `delta` set. One-sided.
+//! (1 − F(cos θi)) (1 − w_s), with w_s = mean(specular_reflectance) divided by the sum
+//! mean(specular_reflectance) + mean(diffuse_reflectance), as Mitsuba does. eval and pdf
+//! cover the diffuse (smooth) lobe only; the delta lobe is reported by `sample` with `delta` set. One-sided.
 
 use super::fresnel::{diffuse_fresnel_reflectance, fresnel_dielectric};
 use super::{BsdfSample, Spectrum};
