@@ -1278,7 +1278,7 @@ fn referenced_bsdfs() {
 
 #[test]
 fn unknown_bsdf_plugins_fail() {
-    for plugin in ["roughplastic", "conductor", "dielectric", "plastic"] {
+    for plugin in ["principled", "blendbsdf", "mask", "hair"] {
         let xml = with_sensor(&format!(
             "<shape type=\"sphere\">\n    <bsdf type=\"{plugin}\"/>\n</shape>"
         ));
@@ -1289,24 +1289,24 @@ fn unknown_bsdf_plugins_fail() {
         );
     }
     // Declared at the top level and never used: still checked, as Mitsuba instantiates it.
-    let xml = with_sensor(r#"<bsdf type="roughplastic" id="unused"/>"#);
+    let xml = with_sensor(r#"<bsdf type="principled" id="unused"/>"#);
     assert_error(
         &xml,
         "<bsdf",
-        &["unsupported plugin <bsdf type=\"roughplastic\">"],
+        &["unsupported plugin <bsdf type=\"principled\">"],
     );
     // Nested in a twosided.
     let xml = with_sensor(
         r#"<shape type="sphere">
     <bsdf type="twosided">
-        <bsdf type="roughplastic"/>
+        <bsdf type="principled"/>
     </bsdf>
 </shape>"#,
     );
     assert_error(
         &xml,
-        "<bsdf type=\"roughplastic\"",
-        &["unsupported plugin <bsdf type=\"roughplastic\">"],
+        "<bsdf type=\"principled\"",
+        &["unsupported plugin <bsdf type=\"principled\">"],
     );
 }
 
