@@ -310,3 +310,66 @@ fn duplicate_vertices_and_huge_coordinate_ranges_in_one_mesh() {
     }
     std::fs::remove_dir_all(&dir).ok();
 }
+
+/// Materials at the extremes of issue 6 (alpha 1e-4 and 1, IOR 1.0001 and 4, k 10, radiance
+/// 1e-6 and 1e6 lighting them): eval, pdf and sample give finite, non-negative values for
+/// directions down to cos θ = ±1e-7, and rendering them drops no sample as non-finite.
+#[test]
+fn extreme_materials_give_no_nan_or_inf() {
+    let bsdfs = [
+        r#"<bsdf type="roughconductor"><float name="alpha" value="0.0001"/></bsdf>"#,
+        r#"<bsdf type="roughconductor"><string name="distribution" value="beckmann"/><float name="alpha" value="1"/></bsdf>"#,
+        r#"<bsdf type="roughconductor"><float name="alpha_u" value="0.0001"/><float name="alpha_v" value="1"/></bsdf>"#,
+        r#"<bsdf type="conductor"><rgb name="eta" value="0.1, 4, 1"/><rgb name="k" value="10, 10, 0"/></bsdf>"#,
+        r#"<bsdf type="roughdielectric"><float name="alpha" value="0.0001"/><float name="int_ior" value="1.0001"/></bsdf>"#,
+        r#"<bsdf type="roughdielectric"><float name="alpha" value="1"/><float name="int_ior" value="4"/></bsdf>"#,
+        r#"<bsdf type="dielectric"><float name="int_ior" value="1.0001"/></bsdf>"#,
+        r#"<bsdf type="thindielectric"><float name="int_ior" value="4"/></bsdf>"#,
+        r#"<bsdf type="roughplastic"><float name="alpha" value="0.0001"/><float name="int_ior" value="4"/></bsdf>"#,
+        r#"<bsdf type="plastic"><float name="int_ior" value="1.0001"/></bsdf>"#,
+    ];
+    let mut dirs = Vec::new();
+    for z in [1e-7f32, -1e-7, 1e-4, -1e-4, 0.5, -0.5, 1.0, -1.0] {
+        let r = (1.0 - z * z).max(0.0).sqrt();
+        for phi in [0.0f32, 1.0, 2.5, 4.0] {
+            dirs.push(Vec3::new(r * phi.cos(), r * phi.sin(), z));
+        }
+    }
+    for (i, b) in bsdfs.iter().enumerate() {
+        for radiance in ["0.000001", "1000000"] {
+            let xml = format!(
+                r#"<scene version="3.0.0"><sensor type="perspective"><float name="fov" value="60"/>
+                <transform name="to_world"><lookat origin="0,0,3" target="0,0,0" up="0,1,0"/></transform>
+                <film type="hdrfilm"><integer name="width" value="12"/><integer name="height" value="12"/><rfilter type="box"/></film></sensor>
+                <shape type="sphere">{b}</shape>
+                <shape type="rectangle"><transform name="to_world"><scale value="5"/><translate z="-2"/></transform></shape>
+                <shape type="disk"><transform name="to_world"><rotate x="1" angle="180"/><translate y="0.5" z="4"/></transform>
+                    <emitter type="area"><rgb name="radiance" value="{radiance}"/></emitter></shape></scene>"#
+            );
+            let scene = scene_from_str(&xml);
+            let out = render_scene(&scene, 32, 9, None);
+            assert_eq!(out.stats.nonfinite, 0, "bsdf {i} radiance {radiance}");
+            let bsdf = &scene.bsdfs[0];
+            let mut s = penumbra::sampler::SampleStream::new(5, i as u64, 0);
+            for &wi in &dirs {
+                for &wo in &dirs {
+                    let f = bsdf.eval(wi, wo);
+                    let p = bsdf.pdf(wi, wo);
+                    assert!(
+                        f.is_finite() && f.min_element() >= 0.0 && p.is_finite() && p >= 0.0,
+                        "bsdf {i}: {wi} {wo}"
+                    );
+                }
+                for _ in 0..64 {
+                    if let Some(bs) = bsdf.sample(wi, s.next_1d(), s.next_2d()) {
+                        assert!(
+                            bs.wo.is_finite() && bs.weight.is_finite() && bs.pdf.is_finite(),
+                            "bsdf {i}: sample at {wi}"
+                        );
+                        assert!(bs.weight.min_element() >= 0.0 && bs.pdf >= 0.0);
+                    }
+                }
+            }
+        }
+    }
+}
