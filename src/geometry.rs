@@ -7,7 +7,7 @@
 //! never a fixed epsilon, so the same scene renders alike at any scale or distance from the
 //! origin. Shadow rays end short of their target by the relative margin [`SHADOW_EPSILON`].
 
-use glam::{Vec3, Vec3A};
+use glam::Vec3;
 
 /// Half an ULP of 1.0 in f32: the unit roundoff of IEEE-754 single precision.
 pub const MACHINE_EPSILON: f32 = f32::EPSILON * 0.5;
@@ -55,28 +55,6 @@ impl Ray {
 
     pub fn at(&self, t: f32) -> Vec3 {
         self.o + self.d * t
-    }
-
-    /// The ray in obvhs's form. Its `Ray::new` clamps direction components below f32::EPSILON
-    /// to ±1/EPSILON in the inverse, which turns the slab of an axis-parallel ray into a finite
-    /// interval and culls boxes the ray runs inside of (a ray along +y through a mesh vertex
-    /// slipped through). Here only components below 1e-30 are nudged to ±1e-30 (inverse ±1e30,
-    /// so slabs stay effectively infinite and 0 · ∞ never makes a NaN).
-    pub(crate) fn to_obvhs(self) -> obvhs::ray::Ray {
-        let inv = |x: f32| {
-            1.0 / if x.abs() < 1e-30 {
-                1e-30f32.copysign(x)
-            } else {
-                x
-            }
-        };
-        obvhs::ray::Ray {
-            origin: Vec3A::from(self.o),
-            direction: Vec3A::from(self.d),
-            inv_direction: Vec3A::new(inv(self.d.x), inv(self.d.y), inv(self.d.z)),
-            tmin: 0.0,
-            tmax: self.tmax,
-        }
     }
 }
 
