@@ -94,18 +94,20 @@ const LEAF: u32 = 1 << 31;
 const EMPTY: u32 = u32::MAX;
 
 /// A 4-wide node: `bounds[0]` are the children's minima, `bounds[1]` their maxima, per axis
-/// (lane = child). Empty lanes have min = +∞, max = −∞ and are never entered.
+/// (lane = child); `valid` masks the lanes that hold a child.
 #[derive(Clone, Copy, Debug)]
 #[repr(C, align(16))]
 struct Node4 {
     bounds: [[Vec4; 3]; 2],
     child: [u32; 4],
+    valid: u32,
 }
 
 impl Node4 {
     const EMPTY: Node4 = Node4 {
         bounds: [[Vec4::INFINITY; 3], [Vec4::NEG_INFINITY; 3]],
         child: [EMPTY; 4],
+        valid: 0,
     };
 }
 
@@ -125,8 +127,6 @@ struct Leaf4 {
 struct BoxRay {
     o: [Vec4; 3],
     inv: [Vec4; 3],
-    /// Index into `Node4::bounds` of the near plane per axis (1 where the direction is < 0).
-    near: [usize; 3],
 }
 
 impl BoxRay {
@@ -144,7 +144,6 @@ impl BoxRay {
         BoxRay {
             o: [0, 1, 2].map(|a| Vec4::splat(ray.o[a])),
             inv: inv.map(Vec4::splat),
-            near: inv.map(|i| (i < 0.0) as usize),
         }
     }
 
@@ -155,14 +154,13 @@ impl BoxRay {
         let mut t_near = Vec4::ZERO;
         let mut t_far = Vec4::INFINITY;
         for a in 0..3 {
-            let n = self.near[a];
-            let t0 = (node.bounds[n][a] - self.o[a]) * self.inv[a];
-            let t1 = (node.bounds[1 - n][a] - self.o[a]) * self.inv[a];
-            t_near = t_near.max(t0);
-            t_far = t_far.min(t1);
+            let t0 = (node.bounds[0][a] - self.o[a]) * self.inv[a];
+            let t1 = (node.bounds[1][a] - self.o[a]) * self.inv[a];
+            t_near = t_near.max(t0.min(t1));
+            t_far = t_far.min(t0.max(t1));
         }
         let t_far = (t_far * Vec4::splat(1.0 + 2.0 * gamma(3))).min(Vec4::splat(tmax));
-        (t_near.cmple(t_far).bitmask(), t_near)
+        (t_near.cmple(t_far).bitmask() & node.valid, t_near)
     }
 }
 
@@ -280,6 +278,7 @@ impl Accel {
                     node.bounds[0][a][lane] = aabb.min[a];
                     node.bounds[1][a][lane] = aabb.max[a];
                 }
+                node.valid |= 1 << lane;
                 node.child[lane] = if nodes[c].prim_count > 0 {
                     self.add_leaf(&nodes[c])
                 } else {
@@ -366,6 +365,7 @@ impl Accel {
                 if mask != 0 && any {
                     return 0.0;
                 }
+                let (t, b1, b2) = (t.to_array(), b1.to_array(), b2.to_array());
                 while mask != 0 {
                     let lane = mask.trailing_zeros() as usize;
                     mask &= mask - 1;
@@ -437,11 +437,13 @@ impl Accel {
             while node & LEAF == 0 {
                 let n = &self.nodes[node as usize];
                 let (mut mask, t_near) = boxes.test(n, tmax);
+                let t_near = t_near.to_array();
                 if mask == 0 {
                     node = EMPTY;
                     break;
                 }
-                // Order the entered children by distance (at most four: insertion sort).
+                // Order the entered children by distance (at most four: insertion sort),
+                // far to near.
                 let mut order = [(0u32, 0.0f32); 4];
                 let mut count = 0;
                 while mask != 0 {
