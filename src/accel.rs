@@ -437,11 +437,16 @@ impl Accel {
             while node & LEAF == 0 {
                 let n = &self.nodes[node as usize];
                 let (mut mask, t_near) = boxes.test(n, tmax);
-                let t_near = t_near.to_array();
                 if mask == 0 {
                     node = EMPTY;
                     break;
                 }
+                if mask & (mask - 1) == 0 {
+                    // One child entered: descend without touching the stack.
+                    node = n.child[mask.trailing_zeros() as usize];
+                    continue;
+                }
+                let t_near = t_near.to_array();
                 // Order the entered children by distance (at most four: insertion sort),
                 // far to near.
                 let mut order = [(0u32, 0.0f32); 4];

@@ -374,6 +374,11 @@ pub fn intersect_triangle4(
     let on_edge = (e0.cmpeq(zero) | e1.cmpeq(zero) | e2.cmpeq(zero)).bitmask() & lanes;
     let neg = e0.cmplt(zero) | e1.cmplt(zero) | e2.cmplt(zero);
     let pos = e0.cmpgt(zero) | e1.cmpgt(zero) | e2.cmpgt(zero);
+    let inside = lanes & !on_edge & !(neg & pos).bitmask();
+    if inside == 0 && on_edge == 0 {
+        // The ray passes outside all four triangles: skip distances and error bounds.
+        return (0, zero, zero, zero);
+    }
     let det = e0 + e1 + e2;
     let az = r.sz * a_z;
     let bz = r.sz * b_z;
@@ -385,8 +390,8 @@ pub fn intersect_triangle4(
     let det_pos = det.cmpgt(zero);
     let reject_neg = det_neg & (t_scaled.cmpge(zero) | t_scaled.cmplt(t_det));
     let reject_pos = det_pos & (t_scaled.cmple(zero) | t_scaled.cmpgt(t_det));
-    let reject = (neg & pos) | det.cmpeq(zero) | !det.is_finite_mask() | reject_neg | reject_pos;
-    let mut hit = lanes & !on_edge & !reject.bitmask();
+    let reject = det.cmpeq(zero) | !det.is_finite_mask() | reject_neg | reject_pos;
+    let mut hit = inside & !reject.bitmask();
     let inv_det = Vec4::ONE / det;
     let mut t = t_scaled * inv_det;
     let mut b1 = e1 * inv_det;
