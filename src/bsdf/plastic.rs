@@ -44,6 +44,20 @@ pub(super) fn specular_sampling_weight(specular: Spectrum, diffuse: Spectrum) ->
     }
 }
 
+/// Probability of sampling the specular lobe of a coated BSDF (plastic, roughplastic):
+/// ps / (ps + pd) with ps = `specular` · w and pd = `diffuse` · (1 − w), where `specular` is the
+/// fraction reflected by the coating at the incident angle and `diffuse` the fraction it lets
+/// through, and w is [`specular_sampling_weight`] (Mitsuba's rule).
+pub(super) fn specular_lobe_probability(specular: f32, diffuse: f32, weight: f32) -> f32 {
+    let ps = specular * weight;
+    let pd = diffuse * (1.0 - weight);
+    if ps + pd > 0.0 {
+        ps / (ps + pd)
+    } else {
+        0.0
+    }
+}
+
 /// R' of the diffuse base with internal reflections at the coating.
 pub(super) fn diffuse_with_internal_scattering(
     r: Spectrum,
@@ -79,13 +93,7 @@ impl Plastic {
 
     /// Probability of sampling the specular lobe, given F(cos θi).
     fn prob_specular(&self, f_i: f32) -> f32 {
-        let ps = f_i * self.specular_sampling_weight;
-        let pd = (1.0 - f_i) * (1.0 - self.specular_sampling_weight);
-        if ps + pd > 0.0 {
-            ps / (ps + pd)
-        } else {
-            0.0
-        }
+        specular_lobe_probability(f_i, 1.0 - f_i, self.specular_sampling_weight)
     }
 
     pub fn eval(&self, wi: Vec3, wo: Vec3) -> Spectrum {

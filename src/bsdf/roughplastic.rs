@@ -19,7 +19,9 @@
 
 use super::fresnel::{fresnel_dielectric, reflect, refract};
 use super::microfacet::Microfacet;
-use super::plastic::{diffuse_with_internal_scattering, specular_sampling_weight};
+use super::plastic::{
+    diffuse_with_internal_scattering, specular_lobe_probability, specular_sampling_weight,
+};
 use super::{BsdfSample, Spectrum};
 use crate::sampling::{square_to_cosine_hemisphere, square_to_cosine_hemisphere_pdf};
 use glam::{Vec2, Vec3};
@@ -178,14 +180,9 @@ impl RoughPlastic {
         (self.distribution.pdf(wi, m) as f64 / (4.0 * dot as f64)) as f32
     }
 
+    /// Probability of sampling the specular lobe, given the coating's transmittance T(cos θi).
     fn prob_specular(&self, t_i: f32) -> f32 {
-        let ps = (1.0 - t_i) * self.specular_sampling_weight;
-        let pd = t_i * (1.0 - self.specular_sampling_weight);
-        if ps + pd > 0.0 {
-            ps / (ps + pd)
-        } else {
-            0.0
-        }
+        specular_lobe_probability(1.0 - t_i, t_i, self.specular_sampling_weight)
     }
 
     pub fn eval(&self, wi: Vec3, wo: Vec3) -> Spectrum {
