@@ -47,6 +47,26 @@ pub struct BsdfSample {
     pub delta: bool,
 }
 
+impl BsdfSample {
+    /// A sample of a non-delta lobe: direction `wo` drawn with solid-angle density `pdf`, where
+    /// the BSDF is `f`. `None` unless the density is positive and finite and the weight
+    /// f / pdf is finite.
+    #[inline]
+    pub fn smooth(wo: Vec3, pdf: f32, f: impl FnOnce() -> Spectrum, eta: f32) -> Option<Self> {
+        if !(pdf > 0.0 && pdf.is_finite()) {
+            return None;
+        }
+        let weight = f() / pdf;
+        weight.is_finite().then_some(BsdfSample {
+            wo,
+            pdf,
+            weight,
+            eta,
+            delta: false,
+        })
+    }
+}
+
 #[derive(Clone, Debug)]
 pub enum Bsdf {
     Diffuse(Diffuse),

@@ -135,16 +135,6 @@ impl Plastic {
         }
         let wo = square_to_cosine_hemisphere(u2);
         let pdf = (1.0 - ps) * square_to_cosine_hemisphere_pdf(wo);
-        if !(pdf > 0.0 && pdf.is_finite()) {
-            return None;
-        }
-        let weight = self.eval(wi, wo) / pdf;
-        weight.is_finite().then_some(BsdfSample {
-            wo,
-            pdf,
-            weight,
-            eta: 1.0,
-            delta: false,
-        })
+        BsdfSample::smooth(wo, pdf, || self.eval(wi, wo), 1.0)
     }
 }

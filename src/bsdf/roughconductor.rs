@@ -63,16 +63,6 @@ impl RoughConductor {
             return None;
         }
         let pdf = (pdf_m as f64 / (4.0 * dot as f64)) as f32;
-        if !(pdf > 0.0 && pdf.is_finite()) {
-            return None;
-        }
-        let weight = self.eval(wi, wo) / pdf;
-        weight.is_finite().then_some(BsdfSample {
-            wo,
-            pdf,
-            weight,
-            eta: 1.0,
-            delta: false,
-        })
+        BsdfSample::smooth(wo, pdf, || self.eval(wi, wo), 1.0)
     }
 }

@@ -134,16 +134,6 @@ impl RoughDielectric {
             (wo, fr.eta_it)
         };
         let pdf = self.pdf(wi, wo);
-        if !(pdf > 0.0 && pdf.is_finite()) {
-            return None;
-        }
-        let weight = self.eval(wi, wo) / pdf;
-        weight.is_finite().then_some(BsdfSample {
-            wo,
-            pdf,
-            weight,
-            eta,
-            delta: false,
-        })
+        BsdfSample::smooth(wo, pdf, || self.eval(wi, wo), eta)
     }
 }

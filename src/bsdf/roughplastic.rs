@@ -221,16 +221,6 @@ impl RoughPlastic {
             return None;
         }
         let pdf = self.pdf(wi, wo);
-        if !(pdf > 0.0 && pdf.is_finite()) {
-            return None;
-        }
-        let weight = self.eval(wi, wo) / pdf;
-        weight.is_finite().then_some(BsdfSample {
-            wo,
-            pdf,
-            weight,
-            eta: 1.0,
-            delta: false,
-        })
+        BsdfSample::smooth(wo, pdf, || self.eval(wi, wo), 1.0)
     }
 }
