@@ -71,15 +71,7 @@ pub fn integrate_cells(pdf: &impl Fn(Vec3) -> f64, cfg: &Chi2Config) -> Vec<f64>
     let q = cfg.quadrature.max(2) & !1;
     let (nt, np) = (cfg.cos_theta_bins, cfg.phi_bins);
     let (dct, dphi) = (2.0 / nt as f64, 2.0 * PI / np as f64);
-    let simpson = |i: usize| -> f64 {
-        if i == 0 || i == q {
-            1.0
-        } else if i % 2 == 1 {
-            4.0
-        } else {
-            2.0
-        }
-    };
+    let simpson = |i: usize| simpson_weight(i, q);
     let mut out = vec![0.0; nt * np];
     for it in 0..nt {
         for ip in 0..np {
@@ -144,17 +136,21 @@ fn observe(
     (observed, landed)
 }
 
+/// Weight of node `i` of the composite Simpson rule with `q` (even) intervals: 1, 4, 2, 4, ...,
+/// 4, 1.
+fn simpson_weight(i: usize, q: usize) -> f64 {
+    if i == 0 || i == q {
+        1.0
+    } else if i % 2 == 1 {
+        4.0
+    } else {
+        2.0
+    }
+}
+
 /// Simpson's rule on a rectangle of (cos θ, φ) with `q` (even) intervals per side.
 fn simpson_rect(pdf: &impl Fn(Vec3) -> f64, ct0: f64, ct1: f64, p0: f64, p1: f64, q: usize) -> f64 {
-    let w = |i: usize| -> f64 {
-        if i == 0 || i == q {
-            1.0
-        } else if i % 2 == 1 {
-            4.0
-        } else {
-            2.0
-        }
-    };
+    let w = |i: usize| simpson_weight(i, q);
     let (hc, hp) = ((ct1 - ct0) / q as f64, (p1 - p0) / q as f64);
     let mut acc = 0.0;
     for a in 0..=q {
