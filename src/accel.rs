@@ -28,21 +28,13 @@ use obvhs::{Boundable, BvhBuildParams};
 use std::mem::MaybeUninit;
 use std::time::Duration;
 
-/// A primitive as the BVH sees it. Triangles carry their vertices so that the hot loop
-/// reads one cache line per triangle.
+/// A primitive as the BVH sees it: triangle `index` of mesh `shape`, or an analytic shape.
+/// Triangle vertices are read from the mesh once, when the leaves are packed.
 #[derive(Clone, Copy, Debug)]
 pub enum Primitive {
-    Triangle {
-        p: [Vec3; 3],
-        shape: u32,
-        index: u32,
-    },
-    Sphere {
-        shape: u32,
-    },
-    Disk {
-        shape: u32,
-    },
+    Triangle { shape: u32, index: u32 },
+    Sphere { shape: u32 },
+    Disk { shape: u32 },
 }
 
 struct Bounded<'a> {
@@ -61,10 +53,20 @@ fn padded(points: impl IntoIterator<Item = Vec3>) -> Aabb {
     Aabb::new(aabb.min - pad, aabb.max + pad)
 }
 
+/// The vertices of triangle `index` of mesh `shape`.
+fn triangle_vertices(shapes: &[Shape], shape: u32, index: u32) -> [Vec3; 3] {
+    match &shapes[shape as usize].geometry {
+        ShapeGeometry::Mesh(m) => m.vertices(index as usize),
+        _ => unreachable!("triangle primitive of a non-mesh shape"),
+    }
+}
+
 impl Boundable for Bounded<'_> {
     fn aabb(&self) -> Aabb {
         match *self.prim {
-            Primitive::Triangle { p, .. } => padded(p),
+            Primitive::Triangle { shape, index } => {
+                padded(triangle_vertices(self.shapes, shape, index))
+            }
             Primitive::Sphere { shape } => match &self.shapes[shape as usize].geometry {
                 ShapeGeometry::Sphere(s) => {
                     let r = glam::DVec3::splat(s.radius);
@@ -196,7 +198,6 @@ impl Accel {
                 ShapeGeometry::Mesh(m) => {
                     for t in 0..m.triangles.len() {
                         prims.push(Primitive::Triangle {
-                            p: m.vertices(t),
                             shape: shape_id,
                             index: t as u32,
                         });
@@ -231,19 +232,19 @@ impl Accel {
             .map(|&i| prims[i as usize])
             .collect();
         drop(bounded);
-        accel.collapse(&bvh);
+        accel.collapse(&bvh, shapes);
         accel
     }
 
     /// Turns the binary BVH into 4-wide nodes: each node takes its two children and keeps
     /// opening the inner child of largest surface area until it has four.
-    fn collapse(&mut self, bvh: &Bvh2) {
+    fn collapse(&mut self, bvh: &Bvh2, shapes: &[Shape]) {
         let nodes = &bvh.nodes;
         if nodes.is_empty() {
             return;
         }
         if nodes[0].prim_count > 0 {
-            self.root = self.add_leaf(&nodes[0]);
+            self.root = self.add_leaf(&nodes[0], shapes);
             return;
         }
         self.nodes.push(Node4::EMPTY);
@@ -280,7 +281,7 @@ impl Accel {
                 }
                 node.valid |= 1 << lane;
                 node.child[lane] = if nodes[c].prim_count > 0 {
-                    self.add_leaf(&nodes[c])
+                    self.add_leaf(&nodes[c], shapes)
                 } else {
                     let idx = self.nodes.len();
                     self.nodes.push(Node4::EMPTY);
@@ -295,7 +296,7 @@ impl Accel {
 
     /// Packs the primitives of one binary leaf into leaf blocks of four; returns its child
     /// reference.
-    fn add_leaf(&mut self, node: &obvhs::bvh2::node::Bvh2Node) -> u32 {
+    fn add_leaf(&mut self, node: &obvhs::bvh2::node::Bvh2Node, shapes: &[Shape]) -> u32 {
         let first_block = self.leaves.len() as u32;
         let slots: Vec<u32> = (node.first_index..node.first_index + node.prim_count).collect();
         let chunks: Vec<&[u32]> = slots.chunks(4).collect();
@@ -311,8 +312,8 @@ impl Accel {
             for (lane, &slot) in chunk.iter().enumerate() {
                 block.slot[lane] = slot;
                 match self.prims[slot as usize] {
-                    Primitive::Triangle { p, .. } => {
-                        tris[lane] = p;
+                    Primitive::Triangle { shape, index } => {
+                        tris[lane] = triangle_vertices(shapes, shape, index);
                         block.tri_mask |= 1 << lane;
                     }
                     _ => block.analytic_mask |= 1 << lane,
@@ -346,7 +347,7 @@ impl Accel {
     }
 
     /// Tests the leaf blocks starting at `first`; updates `best` and returns the new tmax.
-    /// With `any`, returns 0 at the first hit (occlusion).
+    /// With `any`, returns at the first block with a hit (occlusion).
     #[inline(always)]
     fn test_leaf(
         &self,
@@ -362,10 +363,18 @@ impl Accel {
             if block.tri_mask != 0 {
                 let (mut mask, t, b1, b2) =
                     intersect_triangle4(&ctx.shear, &block.tri, tmax, block.tri_mask);
-                if mask != 0 && any {
-                    return 0.0;
-                }
                 let (t, b1, b2) = (t.to_array(), b1.to_array(), b2.to_array());
+                if any && mask != 0 {
+                    // Occlusion: any hit will do.
+                    let lane = mask.trailing_zeros() as usize;
+                    *best = Some(Hit {
+                        prim: block.slot[lane],
+                        t: t[lane],
+                        b1: b1[lane],
+                        b2: b2[lane],
+                    });
+                    return tmax;
+                }
                 while mask != 0 {
                     let lane = mask.trailing_zeros() as usize;
                     mask &= mask - 1;
@@ -385,9 +394,6 @@ impl Accel {
                 let lane = mask.trailing_zeros() as usize;
                 mask &= mask - 1;
                 if let Some(t) = self.test_analytic(block.slot[lane], ctx.ray, tmax, ctx.shapes) {
-                    if any {
-                        return 0.0;
-                    }
                     tmax = t;
                     *best = Some(Hit {
                         prim: block.slot[lane],
@@ -395,6 +401,9 @@ impl Accel {
                         b1: 0.0,
                         b2: 0.0,
                     });
+                    if any {
+                        return tmax;
+                    }
                 }
             }
             if !block.more {
@@ -474,13 +483,8 @@ impl Accel {
                 continue;
             }
             tmax = self.test_leaf((node & !LEAF) as usize, &ctx, tmax, &mut best, any);
-            if any && tmax == 0.0 {
-                return best.or(Some(Hit {
-                    prim: 0,
-                    t: 0.0,
-                    b1: 0.0,
-                    b2: 0.0,
-                }));
+            if any && best.is_some() {
+                return best;
             }
         }
         best
