@@ -92,6 +92,12 @@ def main():
     args = ap.parse_args()
     if os.path.exists(LLVM):
         os.environ.setdefault("DRJIT_LIBLLVM_PATH", LLVM)
+    if "llvm_ad_rgb" in args.variants and not os.path.exists(
+            os.environ.get("DRJIT_LIBLLVM_PATH", "")):
+        # Without it Dr.Jit picks up whatever libLLVM it finds; Debian's LLVM 15 aborts in
+        # code generation ("Cannot select: fminimum").
+        sys.exit(f"llvm_ad_rgb needs LLVM 19: apt-get install -y libllvm19 (expected {LLVM}), "
+                 "or set DRJIT_LIBLLVM_PATH")
 
     scenes = tomllib.loads((ROOT / "validation" / "scenes.toml").read_text())["scene"]
     scenes = [s for s in scenes if s["status"] == "landed" and (not args.scene or s["name"] in args.scene)]
