@@ -1,16 +1,25 @@
 //! BVH build time against triangle count (the Stanford bunny and procedurally subdivided
 //! spheres), and closest-hit / occlusion rays per second on the bunny, coherent (a pinhole
 //! camera's primary rays) and incoherent (random directions from random points in its bounds).
+//! The `bvh-layouts` group traces the same rays through obvhs's binary BVH (`Bvh2`) and its
+//! 8-wide compressed BVH (`CwBvh`, Ylitie et al. 2017), both built by obvhs's
+//! `medium_build` and calling penumbra's scalar watertight triangle test, and through
+//! penumbra's own 4-wide BVH (`Accel`): which layout traverses fastest here.
 //! Run with `cargo bench --bench bvh`.
 
 use criterion::{criterion_group, criterion_main, BenchmarkId, Criterion, Throughput};
 use glam::{DMat4, Vec3};
+use obvhs::aabb::Aabb;
+use obvhs::ray::RayHit;
+use obvhs::{Boundable, BvhBuildParams};
 use penumbra::accel::Accel;
 use penumbra::geometry::Ray;
 use penumbra::sampler::SampleStream;
 use penumbra::scene::build::load_obj;
+use penumbra::shape::mesh::{intersect_triangle, RayShear};
 use penumbra::shape::{Mesh, Shape, ShapeGeometry};
 use std::path::Path;
+use std::time::Duration;
 
 fn bunny() -> Vec<Shape> {
     let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes/meshes/stanford-bunny.obj");
@@ -91,30 +100,7 @@ fn rays(c: &mut Criterion) {
     let shapes = bunny();
     let accel = Accel::build(&shapes);
     let n = 1 << 16;
-    // Bunny bounds ~ [-0.1, 0.06] x [0.03, 0.19] x [-0.06, 0.06].
-    let centre = Vec3::new(-0.017, 0.11, 0.0);
-    let coherent: Vec<Ray> = (0..n)
-        .map(|i| {
-            let (x, y) = (
-                (i % 256) as f32 / 256.0 - 0.5,
-                (i / 256) as f32 / 256.0 - 0.5,
-            );
-            let o = centre + Vec3::new(0.0, 0.0, 0.4);
-            Ray::new(
-                o,
-                Vec3::new(x * 0.5, -y * 0.5, -1.0).normalize(),
-                f32::INFINITY,
-            )
-        })
-        .collect();
-    let incoherent: Vec<Ray> = (0..n)
-        .map(|i| {
-            let mut s = SampleStream::new(1, i as u64, 0);
-            let o = centre + (Vec3::new(s.next_1d(), s.next_1d(), s.next_1d()) - 0.5) * 0.2;
-            let d = (Vec3::new(s.next_1d(), s.next_1d(), s.next_1d()) - 0.5).normalize();
-            Ray::new(o, d, f32::INFINITY)
-        })
-        .collect();
+    let [(_, coherent), (_, incoherent)] = bunny_rays(n);
     let mut g = c.benchmark_group("bunny-rays");
     g.throughput(Throughput::Elements(n as u64));
     g.sample_size(20);
@@ -133,5 +119,177 @@ fn rays(c: &mut Criterion) {
     g.finish();
 }
 
-criterion_group!(benches, build, rays);
+/// The bunny's coherent and incoherent rays of [`rays`].
+fn bunny_rays(n: usize) -> [(&'static str, Vec<Ray>); 2] {
+    // Bunny bounds ~ [-0.1, 0.06] x [0.03, 0.19] x [-0.06, 0.06].
+    let centre = Vec3::new(-0.017, 0.11, 0.0);
+    let coherent = (0..n)
+        .map(|i| {
+            let (x, y) = (
+                (i % 256) as f32 / 256.0 - 0.5,
+                (i / 256) as f32 / 256.0 - 0.5,
+            );
+            let o = centre + Vec3::new(0.0, 0.0, 0.4);
+            Ray::new(
+                o,
+                Vec3::new(x * 0.5, -y * 0.5, -1.0).normalize(),
+                f32::INFINITY,
+            )
+        })
+        .collect();
+    let incoherent = (0..n)
+        .map(|i| {
+            let mut s = SampleStream::new(1, i as u64, 0);
+            let o = centre + (Vec3::new(s.next_1d(), s.next_1d(), s.next_1d()) - 0.5) * 0.2;
+            let d = (Vec3::new(s.next_1d(), s.next_1d(), s.next_1d()) - 0.5).normalize();
+            Ray::new(o, d, f32::INFINITY)
+        })
+        .collect();
+    [("coherent", coherent), ("incoherent", incoherent)]
+}
+
+struct Tri([Vec3; 3]);
+
+impl Boundable for Tri {
+    fn aabb(&self) -> Aabb {
+        let mut a = Aabb::empty();
+        for p in self.0 {
+            a.extend(p.into());
+        }
+        a
+    }
+}
+
+fn layouts(c: &mut Criterion) {
+    let shapes = bunny();
+    let ShapeGeometry::Mesh(mesh) = &shapes[0].geometry else {
+        unreachable!()
+    };
+    let tris: Vec<Tri> = (0..mesh.triangles.len())
+        .map(|i| Tri(mesh.vertices(i)))
+        .collect();
+    let bvh2 = obvhs::bvh2::builder::build_bvh2(
+        &tris,
+        BvhBuildParams::medium_build(),
+        &mut Duration::default(),
+    );
+    let cwbvh = obvhs::cwbvh::builder::build_cwbvh(
+        &tris,
+        BvhBuildParams::medium_build(),
+        &mut Duration::default(),
+    );
+    let accel = Accel::build(&shapes);
+    // penumbra's triangle test on the triangle in BVH slot `slot`.
+    let test = |order: &[u32], shear: &RayShear, r: &obvhs::ray::Ray, slot: usize| {
+        intersect_triangle(shear, &tris[order[slot] as usize].0, r.tmax)
+            .map_or(f32::INFINITY, |h| h.0)
+    };
+    let to_obvhs = |r: &Ray| obvhs::ray::Ray::new_inf(r.o.into(), r.d.into());
+    let mut g = c.benchmark_group("bvh-layouts");
+    let n = 1 << 16;
+    g.throughput(Throughput::Elements(n as u64));
+    g.sample_size(20);
+    for (name, rays) in bunny_rays(n) {
+        // The three should find the same hits before their speeds mean anything: count the
+        // rays where obvhs's layouts disagree with the 4-wide BVH (which is checked against
+        // brute force in its unit test), split by the two known causes.
+        let mut hits = [0usize; 3];
+        let mut wrong = [[0usize; 3]; 2]; // [Bvh2, CwBvh] x [axis-parallel, t < 1e-4, other]
+        for r in &rays {
+            let shear = RayShear::new(r.o, r.d);
+            let (mut h2, mut h8) = (RayHit::none(), RayHit::none());
+            bvh2.ray_traverse(to_obvhs(r), &mut h2, |ray, slot| {
+                test(&bvh2.primitive_indices, &shear, ray, slot)
+            });
+            cwbvh.ray_traverse(to_obvhs(r), &mut h8, |ray, slot| {
+                test(&cwbvh.primitive_indices, &shear, ray, slot)
+            });
+            let h4 = accel.intersect(r, &shapes).map_or(f32::INFINITY, |h| h.t);
+            hits[0] += (h2.t < f32::INFINITY) as usize;
+            hits[1] += (h8.t < f32::INFINITY) as usize;
+            hits[2] += (h4 < f32::INFINITY) as usize;
+            for (k, t) in [h2.t, h8.t].into_iter().enumerate() {
+                if t != h4 {
+                    let cause = if r.d.to_array().contains(&0.0) {
+                        0
+                    } else if h4 < 1e-4 {
+                        1
+                    } else {
+                        2
+                    };
+                    wrong[k][cause] += 1;
+                }
+            }
+        }
+        eprintln!(
+            "{name}: {hits:?} hits of {n} rays (Bvh2, CwBvh, 4-wide); rays whose closest hit \
+             differs from the 4-wide BVH's [axis-parallel, t < 1e-4, other]: Bvh2 {:?}, \
+             CwBvh {:?}",
+            wrong[0], wrong[1]
+        );
+        g.bench_function(format!("obvhs Bvh2 closest-hit {name}"), |b| {
+            b.iter(|| {
+                rays.iter()
+                    .filter(|r| {
+                        let shear = RayShear::new(r.o, r.d);
+                        let mut hit = RayHit::none();
+                        bvh2.ray_traverse(to_obvhs(r), &mut hit, |ray, slot| {
+                            test(&bvh2.primitive_indices, &shear, ray, slot)
+                        })
+                    })
+                    .count()
+            })
+        });
+        g.bench_function(format!("obvhs CwBvh closest-hit {name}"), |b| {
+            b.iter(|| {
+                rays.iter()
+                    .filter(|r| {
+                        let shear = RayShear::new(r.o, r.d);
+                        let mut hit = RayHit::none();
+                        cwbvh.ray_traverse(to_obvhs(r), &mut hit, |ray, slot| {
+                            test(&cwbvh.primitive_indices, &shear, ray, slot)
+                        })
+                    })
+                    .count()
+            })
+        });
+        g.bench_function(format!("penumbra 4-wide closest-hit {name}"), |b| {
+            b.iter(|| {
+                rays.iter()
+                    .filter(|r| accel.intersect(r, &shapes).is_some())
+                    .count()
+            })
+        });
+        g.bench_function(format!("obvhs Bvh2 occlusion {name}"), |b| {
+            b.iter(|| {
+                rays.iter()
+                    .filter(|r| {
+                        let shear = RayShear::new(r.o, r.d);
+                        !bvh2.ray_traverse_miss(to_obvhs(r), |ray, slot| {
+                            test(&bvh2.primitive_indices, &shear, ray, slot)
+                        })
+                    })
+                    .count()
+            })
+        });
+        g.bench_function(format!("obvhs CwBvh occlusion {name}"), |b| {
+            b.iter(|| {
+                rays.iter()
+                    .filter(|r| {
+                        let shear = RayShear::new(r.o, r.d);
+                        !cwbvh.ray_traverse_miss(to_obvhs(r), |ray, slot| {
+                            test(&cwbvh.primitive_indices, &shear, ray, slot)
+                        })
+                    })
+                    .count()
+            })
+        });
+        g.bench_function(format!("penumbra 4-wide occlusion {name}"), |b| {
+            b.iter(|| rays.iter().filter(|r| accel.occluded(r, &shapes)).count())
+        });
+    }
+    g.finish();
+}
+
+criterion_group!(benches, build, rays, layouts);
 criterion_main!(benches);
