@@ -185,6 +185,38 @@ fn layouts(c: &mut Criterion) {
             .map_or(f32::INFINITY, |h| h.0)
     };
     let to_obvhs = |r: &Ray| obvhs::ray::Ray::new_inf(r.o.into(), r.d.into());
+    // Closest-hit distance (∞ for a miss) and occlusion through each layout.
+    let bvh2_closest = |r: &Ray| {
+        let shear = RayShear::new(r.o, r.d);
+        let mut hit = RayHit::none();
+        bvh2.ray_traverse(to_obvhs(r), &mut hit, |ray, slot| {
+            test(&bvh2.primitive_indices, &shear, ray, slot)
+        });
+        hit.t
+    };
+    let cwbvh_closest = |r: &Ray| {
+        let shear = RayShear::new(r.o, r.d);
+        let mut hit = RayHit::none();
+        cwbvh.ray_traverse(to_obvhs(r), &mut hit, |ray, slot| {
+            test(&cwbvh.primitive_indices, &shear, ray, slot)
+        });
+        hit.t
+    };
+    let accel_closest = |r: &Ray| accel.intersect(r, &shapes).map_or(f32::INFINITY, |h| h.t);
+    let bvh2_occluded = |r: &Ray| {
+        let shear = RayShear::new(r.o, r.d);
+        !bvh2.ray_traverse_miss(to_obvhs(r), |ray, slot| {
+            test(&bvh2.primitive_indices, &shear, ray, slot)
+        })
+    };
+    let cwbvh_occluded = |r: &Ray| {
+        let shear = RayShear::new(r.o, r.d);
+        !cwbvh.ray_traverse_miss(to_obvhs(r), |ray, slot| {
+            test(&cwbvh.primitive_indices, &shear, ray, slot)
+        })
+    };
+    let accel_occluded = |r: &Ray| accel.occluded(r, &shapes);
+
     let mut g = c.benchmark_group("bvh-layouts");
     let n = 1 << 16;
     g.throughput(Throughput::Elements(n as u64));
@@ -196,23 +228,15 @@ fn layouts(c: &mut Criterion) {
         let mut hits = [0usize; 3];
         let mut wrong = [[0usize; 3]; 2]; // [Bvh2, CwBvh] x [axis-parallel, t < 1e-4, other]
         for r in &rays {
-            let shear = RayShear::new(r.o, r.d);
-            let (mut h2, mut h8) = (RayHit::none(), RayHit::none());
-            bvh2.ray_traverse(to_obvhs(r), &mut h2, |ray, slot| {
-                test(&bvh2.primitive_indices, &shear, ray, slot)
-            });
-            cwbvh.ray_traverse(to_obvhs(r), &mut h8, |ray, slot| {
-                test(&cwbvh.primitive_indices, &shear, ray, slot)
-            });
-            let h4 = accel.intersect(r, &shapes).map_or(f32::INFINITY, |h| h.t);
-            hits[0] += (h2.t < f32::INFINITY) as usize;
-            hits[1] += (h8.t < f32::INFINITY) as usize;
-            hits[2] += (h4 < f32::INFINITY) as usize;
-            for (k, t) in [h2.t, h8.t].into_iter().enumerate() {
-                if t != h4 {
+            let t = [bvh2_closest(r), cwbvh_closest(r), accel_closest(r)];
+            for k in 0..3 {
+                hits[k] += (t[k] < f32::INFINITY) as usize;
+            }
+            for k in 0..2 {
+                if t[k] != t[2] {
                     let cause = if r.d.to_array().contains(&0.0) {
                         0
-                    } else if h4 < 1e-4 {
+                    } else if t[2] < 1e-4 {
                         1
                     } else {
                         2
@@ -227,66 +251,21 @@ fn layouts(c: &mut Criterion) {
              CwBvh {:?}",
             wrong[0], wrong[1]
         );
-        g.bench_function(format!("obvhs Bvh2 closest-hit {name}"), |b| {
-            b.iter(|| {
-                rays.iter()
-                    .filter(|r| {
-                        let shear = RayShear::new(r.o, r.d);
-                        let mut hit = RayHit::none();
-                        bvh2.ray_traverse(to_obvhs(r), &mut hit, |ray, slot| {
-                            test(&bvh2.primitive_indices, &shear, ray, slot)
-                        })
-                    })
-                    .count()
-            })
+        let mut bench = |id: String, hit: &dyn Fn(&Ray) -> bool| {
+            g.bench_function(id, |b| b.iter(|| rays.iter().filter(|r| hit(r)).count()));
+        };
+        bench(format!("obvhs Bvh2 closest-hit {name}"), &|r| {
+            bvh2_closest(r) < f32::INFINITY
         });
-        g.bench_function(format!("obvhs CwBvh closest-hit {name}"), |b| {
-            b.iter(|| {
-                rays.iter()
-                    .filter(|r| {
-                        let shear = RayShear::new(r.o, r.d);
-                        let mut hit = RayHit::none();
-                        cwbvh.ray_traverse(to_obvhs(r), &mut hit, |ray, slot| {
-                            test(&cwbvh.primitive_indices, &shear, ray, slot)
-                        })
-                    })
-                    .count()
-            })
+        bench(format!("obvhs CwBvh closest-hit {name}"), &|r| {
+            cwbvh_closest(r) < f32::INFINITY
         });
-        g.bench_function(format!("penumbra 4-wide closest-hit {name}"), |b| {
-            b.iter(|| {
-                rays.iter()
-                    .filter(|r| accel.intersect(r, &shapes).is_some())
-                    .count()
-            })
+        bench(format!("penumbra 4-wide closest-hit {name}"), &|r| {
+            accel_closest(r) < f32::INFINITY
         });
-        g.bench_function(format!("obvhs Bvh2 occlusion {name}"), |b| {
-            b.iter(|| {
-                rays.iter()
-                    .filter(|r| {
-                        let shear = RayShear::new(r.o, r.d);
-                        !bvh2.ray_traverse_miss(to_obvhs(r), |ray, slot| {
-                            test(&bvh2.primitive_indices, &shear, ray, slot)
-                        })
-                    })
-                    .count()
-            })
-        });
-        g.bench_function(format!("obvhs CwBvh occlusion {name}"), |b| {
-            b.iter(|| {
-                rays.iter()
-                    .filter(|r| {
-                        let shear = RayShear::new(r.o, r.d);
-                        !cwbvh.ray_traverse_miss(to_obvhs(r), |ray, slot| {
-                            test(&cwbvh.primitive_indices, &shear, ray, slot)
-                        })
-                    })
-                    .count()
-            })
-        });
-        g.bench_function(format!("penumbra 4-wide occlusion {name}"), |b| {
-            b.iter(|| rays.iter().filter(|r| accel.occluded(r, &shapes)).count())
-        });
+        bench(format!("obvhs Bvh2 occlusion {name}"), &bvh2_occluded);
+        bench(format!("obvhs CwBvh occlusion {name}"), &cwbvh_occluded);
+        bench(format!("penumbra 4-wide occlusion {name}"), &accel_occluded);
     }
     g.finish();
 }
