@@ -3,10 +3,10 @@
 use anyhow::{bail, Context, Result};
 use clap::{Parser, Subcommand};
 use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
-use penumbra::compare;
 use penumbra::io::exr::{self, Attribute, RgbImage};
 use penumbra::progressive;
 use penumbra::scene::Scene;
+use penumbra::study::compare;
 use std::collections::BTreeMap;
 use std::io::IsTerminal;
 use std::path::PathBuf;
@@ -71,7 +71,7 @@ struct ConvergeArgs {
     reference_spp: Option<f64>,
     /// The ladder: cumulative samples per pixel, each step continuing the previous one's
     /// samples. `a,b,...,n` continues the progression of ratio b/a up to n.
-    #[arg(long, value_name = "LIST", default_value = penumbra::experiment::DEFAULT_SPP)]
+    #[arg(long, value_name = "LIST", default_value = penumbra::study::experiment::DEFAULT_SPP)]
     spp: String,
     /// Independent ladders with seeds s, s+1, ..., s+K-1: mean and spread per step.
     #[arg(long, value_name = "K", default_value_t = 1)]
@@ -366,7 +366,7 @@ fn run_compare(args: CompareArgs) -> Result<()> {
     }
     let a = exr::read(&args.a)?;
     let b = exr::read(&args.b)?;
-    let alpha = penumbra::validation::ALPHA;
+    let alpha = penumbra::study::validation::ALPHA;
     let cmp = compare::compare(&a, &b, args.spp_a, args.spp_b, alpha)?;
     let diff_path = args.diff.as_ref().map(|p| p.to_string_lossy().into_owned());
     let mut diff_range = None;
@@ -380,9 +380,9 @@ fn run_compare(args: CompareArgs) -> Result<()> {
             ),
         };
         let title = format!("A − B: {} − {}", file_name(&args.a), file_name(&args.b));
-        penumbra::plot::write_diff_png(
+        penumbra::study::plot::write_diff_png(
             path,
-            &penumbra::plot::DiffImage {
+            &penumbra::study::plot::DiffImage {
                 width: a.width,
                 height: a.height,
                 values: &values,
@@ -418,7 +418,7 @@ fn file_name(p: &std::path::Path) -> String {
 }
 
 fn run_converge(args: ConvergeArgs) -> Result<()> {
-    use penumbra::experiment::{self as ex, SeriesResult, Sweep, SweepMode};
+    use penumbra::study::experiment::{self as ex, SeriesResult, Sweep, SweepMode};
     let steps = ex::parse_spp_list(&args.spp).map_err(anyhow::Error::msg)?;
     if args.seeds == 0 {
         bail!("--seeds must be at least 1");
@@ -586,9 +586,9 @@ fn run_converge(args: ConvergeArgs) -> Result<()> {
             String::new()
         }
     );
-    penumbra::plot::write_series_png(
+    penumbra::study::plot::write_series_png(
         &png_path,
-        &penumbra::plot::SeriesPlot {
+        &penumbra::study::plot::SeriesPlot {
             title: &title,
             series: &series,
             floor: reference.noise_floor(),

@@ -21,10 +21,10 @@ mod common;
 use common::*;
 use glam::{Vec2, Vec3};
 use penumbra::bsdf::Bsdf;
-use penumbra::chi2::{chi2_test_adaptive, Chi2Config, Chi2Result};
 use penumbra::geometry::Frame;
 use penumbra::sampler::SampleStream;
-use penumbra::stats::{normal_critical_z, sidak};
+use penumbra::study::chi2::{chi2_test_adaptive, Chi2Config, Chi2Result};
+use penumbra::study::stats::{normal_critical_z, sidak};
 use rayon::prelude::*;
 
 /// A BSDF configuration under test.

@@ -7,7 +7,7 @@ use glam::{DMat4, DVec3, Vec2, Vec3};
 use penumbra::camera::{PerspectiveCamera, ThinLens};
 use penumbra::film::{Film, FilmTile, Filter};
 use penumbra::sampler::SampleStream;
-use penumbra::stats::erfc;
+use penumbra::study::stats::erfc;
 
 const FILTERS: [Filter; 5] = [
     Filter::Box,

@@ -9,7 +9,7 @@
 //! sweep set on the integrator, and the error cases.
 
 use penumbra::io::exr::{self, Attribute, RgbImage};
-use penumbra::stats::{normal_critical_z, sidak};
+use penumbra::study::stats::{normal_critical_z, sidak};
 use serde_json::Value;
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
@@ -445,7 +445,7 @@ fn converge_ladder_on_cornell_box() {
     let png = image::open(out_dir.join("converge.png")).expect("plot");
     assert_eq!(
         (png.width(), png.height()),
-        penumbra::plot::PLOT_SIZE,
+        penumbra::study::plot::PLOT_SIZE,
         "plot size"
     );
     // The table on stdout: one row per step.

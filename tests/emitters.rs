@@ -6,13 +6,13 @@
 mod common;
 use common::*;
 use glam::{Vec2, Vec3};
-use penumbra::chi2::{chi2_test, Chi2Config};
 use penumbra::emitter::Emitter;
 use penumbra::geometry::{Frame, Ray};
 use penumbra::sampler::SampleStream;
 use penumbra::scene::Scene;
 use penumbra::shape::SurfaceInteraction;
-use penumbra::stats::sidak;
+use penumbra::study::chi2::{chi2_test, Chi2Config};
+use penumbra::study::stats::sidak;
 use std::f64::consts::PI;
 
 /// Chi-square tests in this file (for the Šidák correction of α = 0.01).

@@ -7,9 +7,9 @@ use common::*;
 use glam::Vec3;
 use penumbra::geometry::Ray;
 use penumbra::io::exr::RgbImage;
-use penumbra::metrics::{channel_means, z_test};
 use penumbra::render::RenderOutput;
 use penumbra::scene::Scene;
+use penumbra::study::metrics::{channel_means, z_test};
 use std::collections::BTreeMap;
 
 /// The Cornell box with every shape and the camera scaled by `s` about the origin, then
@@ -67,7 +67,7 @@ fn cornell_box_is_invariant_under_scale_and_translation() {
         let (img, _) = render_image(&transformed_cornell(s, o), spp, 2);
         let m = channel_means(&img.rgb);
         // Same seed as `unit_same_seed`: how far from identical the transformed render is.
-        let same = penumbra::metrics::error_metrics(&img.rgb, &unit_same_seed.rgb);
+        let same = penumbra::study::metrics::error_metrics(&img.rgb, &unit_same_seed.rgb);
         eprintln!(
             "scale {s:e} offset {o:e}: same-seed max abs pixel difference {:.3e}, RMSE {:.3e}",
             same.max_abs, same.rmse

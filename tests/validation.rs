@@ -9,10 +9,10 @@
 
 mod common;
 use common::repo_path;
-use penumbra::convergence::{
+use penumbra::study::convergence::{
     fit_log_log, fit_slope, reference_noise_floor, spp_ladder, FLOOR_FACTOR, MIN_FIT_STEPS,
 };
-use penumbra::validation::{
+use penumbra::study::validation::{
     load_scene_list, mean_check, parse_scene_list, study, validate_scene, Reference, Status,
     SLOPE_TOLERANCE,
 };
@@ -230,18 +230,18 @@ fn floor_and_slope_on_synthetic_images() {
     let floor = reference_noise_floor(&v, n_ref);
     assert!((floor - reference.noise_floor()).abs() < 1e-15);
     // A perfect image (the truth) shows the floor as its RMSE, to within its sampling error.
-    let perfect = penumbra::metrics::error_metrics(&truth, &reference.image.rgb);
+    let perfect = penumbra::study::metrics::error_metrics(&truth, &reference.image.rgb);
     assert!(
         (perfect.rmse / floor - 1.0).abs() < 0.03,
         "{} vs {floor}",
         perfect.rmse
     );
-    let mean_v = penumbra::convergence::mean_of(&v);
+    let mean_v = penumbra::study::convergence::mean_of(&v);
     let pts: Vec<(f64, f64)> = spp_ladder(65536)
         .into_iter()
         .map(|n| {
             let img = noisy(&mut rng, n as f64, 0.0);
-            let rmse = penumbra::metrics::error_metrics(&img, &reference.image.rgb).rmse;
+            let rmse = penumbra::study::metrics::error_metrics(&img, &reference.image.rgb).rmse;
             let expected = (mean_v / n as f64 + floor * floor).sqrt();
             assert!(
                 (rmse / expected - 1.0).abs() < 0.03,

@@ -8,8 +8,8 @@ mod common;
 use common::*;
 use penumbra::io::exr;
 use penumbra::io::exr::RgbImage;
-use penumbra::metrics::{channel_means, z_test, VARIANCE_FLOOR};
 use penumbra::scene::Scene;
+use penumbra::study::metrics::{channel_means, z_test, VARIANCE_FLOOR};
 use std::collections::BTreeMap;
 
 const REF_SPP: f64 = 4096.0;

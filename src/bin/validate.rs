@@ -7,9 +7,9 @@
 
 use anyhow::{bail, Context, Result};
 use clap::Parser;
-use penumbra::convergence::spp_ladder;
-use penumbra::plot::{write_convergence_png, ConvergencePlot};
-use penumbra::validation::{
+use penumbra::study::convergence::spp_ladder;
+use penumbra::study::plot::{write_convergence_png, ConvergencePlot};
+use penumbra::study::validation::{
     load_scene_list, report_markdown, validate_scene, ReportContext, SceneResult,
 };
 use std::path::{Path, PathBuf};

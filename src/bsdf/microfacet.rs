@@ -20,7 +20,7 @@
 //! - Without visible sampling: D(m) cos θ_m, sampled in slope space (Walter et al. 2007 §5.2
 //!   eqs. 28 and 35, anisotropic by stretching the slopes).
 
-use crate::stats::erfc;
+use crate::study::stats::erfc;
 use glam::{Vec2, Vec3};
 use std::f32::consts::PI;
 

@@ -8,7 +8,7 @@
 //! out: then the pdf over the sphere integrates to less than one, and the test compares only
 //! what lands on the sphere.
 
-use crate::stats::chi2_sf;
+use crate::study::stats::chi2_sf;
 use glam::Vec3;
 use std::f64::consts::PI;
 

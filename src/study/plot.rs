@@ -5,13 +5,13 @@
 //! Text uses DejaVu Sans, committed in `assets/fonts/` (licence next to it) and compiled in,
 //! so that plotting needs no system fonts.
 
-use crate::convergence::{LadderStep, SlopeFit};
 use crate::error::{Error, Result};
+use crate::study::convergence::{LadderStep, SlopeFit};
 use plotters::prelude::*;
 use std::path::Path;
 use std::sync::OnceLock;
 
-static DEJAVU_SANS: &[u8] = include_bytes!("../assets/fonts/DejaVuSans.ttf");
+static DEJAVU_SANS: &[u8] = include_bytes!("../../assets/fonts/DejaVuSans.ttf");
 
 /// The font family name the plots use (registered on first use).
 const FONT: &str = "sans-serif";

@@ -1,22 +1,22 @@
 //! Convergence experiments (`penumbra converge`): a scene rendered along a ladder of sample
-//! counts ([`crate::convergence::run_ladder_with_film`], each step continuing the previous
+//! counts ([`crate::study::convergence::run_ladder_with_film`], each step continuing the previous
 //! one's samples) against a reference image, for K seeds and for each value of one swept scene
-//! parameter. Per step: wall time, Mpath/s, every error metric of [`crate::metrics`], the
-//! per-pixel z-test pass rate ([`crate::compare::z_test_either`]) and the efficiency
+//! parameter. Per step: wall time, Mpath/s, every error metric of [`crate::study::metrics`], the
+//! per-pixel z-test pass rate ([`crate::study::compare::z_test_either`]) and the efficiency
 //! 1 / (time × MSE); per ladder, the fitted slope of log RMSE against log spp
-//! ([`crate::convergence::fit_slope`]); over seeds, the mean and spread. Written as CSV, JSON
-//! and a plot ([`crate::plot::write_series_png`]).
+//! ([`crate::study::convergence::fit_slope`]); over seeds, the mean and spread. Written as CSV, JSON
+//! and a plot ([`crate::study::plot::write_series_png`]).
 
-use crate::compare::z_test_either;
-use crate::convergence::{fit_slope, mean_of, reference_noise_floor, run_ladder_with_film};
-use crate::convergence::{SlopeFit, FLOOR_FACTOR};
 use crate::error::{Error, Result};
 use crate::io::exr::RgbImage;
-use crate::metrics::ErrorMetrics;
-use crate::plot::{Series, SeriesPoint};
 use crate::render::RenderStats;
 use crate::scene::description::{IntegratorDesc, SceneDescription};
 use crate::scene::Scene;
+use crate::study::compare::z_test_either;
+use crate::study::convergence::{fit_slope, mean_of, reference_noise_floor, run_ladder_with_film};
+use crate::study::convergence::{SlopeFit, FLOOR_FACTOR};
+use crate::study::metrics::ErrorMetrics;
+use crate::study::plot::{Series, SeriesPoint};
 use serde::Serialize;
 use std::collections::BTreeMap;
 use std::fmt::Write as _;
@@ -321,7 +321,7 @@ pub fn run_one(
                     Some(step.spp as f64),
                     r,
                     reference.spp,
-                    crate::validation::ALPHA,
+                    crate::study::validation::ALPHA,
                 );
                 z.test().map(|t| t.pass_rate())
             })

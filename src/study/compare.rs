@@ -1,15 +1,15 @@
 //! `penumbra compare`: the error metrics of one image against another (RMSE, relative MSE,
-//! MAE, max abs error, per-channel means, non-finite pixels; [`crate::metrics`]), the per-pixel
-//! z-test when a per-sample variance is known ([`crate::metrics::z_test`], as in the
+//! MAE, max abs error, per-channel means, non-finite pixels; [`crate::study::metrics`]), the per-pixel
+//! z-test when a per-sample variance is known ([`crate::study::metrics::z_test`], as in the
 //! validation study), and the signed per-pixel difference that the false-colour diff image
-//! shows ([`crate::plot::write_diff_png`]).
+//! shows ([`crate::study::plot::write_diff_png`]).
 //!
 //! The second image, B, is the reference: relative MSE divides by B², relative mean
 //! differences by B's means, and a positive difference means A is brighter.
 
 use crate::error::{Error, Result};
 use crate::io::exr::RgbImage;
-use crate::metrics::{error_metrics, nonfinite_pixels, z_test, ErrorMetrics, ZTest};
+use crate::study::metrics::{error_metrics, nonfinite_pixels, z_test, ErrorMetrics, ZTest};
 use serde::Serialize;
 
 /// Which per-sample variances the z-test used.

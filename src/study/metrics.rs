@@ -2,7 +2,7 @@
 //! the validation study and the command line.
 
 use crate::io::exr::RgbImage;
-use crate::stats::{normal_critical_z, sidak};
+use crate::study::stats::{normal_critical_z, sidak};
 
 /// Per-channel mean of an image over its finite values (NaN and infinite values, counted by
 /// [`nonfinite_pixels`] and [`ErrorMetrics::nonfinite`], are left out; 0 if none is finite).

@@ -17,9 +17,9 @@
 
 use crate::error::{Error, Result};
 use crate::film::Film;
-use crate::metrics::{error_metrics, ErrorMetrics};
 use crate::render::{render, RenderSettings, RenderStats};
 use crate::scene::Scene;
+use crate::study::metrics::{error_metrics, ErrorMetrics};
 
 /// Steps whose RMSE is at most this multiple of the reference's noise floor are left out of
 /// the slope fit. At RMSE = 3·floor the floor makes up 1/9 of the MSE and raises the RMSE by

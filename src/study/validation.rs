@@ -2,11 +2,11 @@
 //! the Mitsuba references (`validation/references/*.exr`, made by
 //! `validation/mitsuba/render_all.py`), the three checks and the markdown report.
 //!
-//! For a scene rendered along a ladder of sample counts (see [`crate::convergence`]), with
+//! For a scene rendered along a ladder of sample counts (see [`crate::study::convergence`]), with
 //! the last step's image and per-sample variance:
 //!
 //! 1. **Bias, per pixel**: the z-test of Mitsuba's own render regression tests
-//!    ([`crate::metrics::z_test`]): z = |ours − ref| / √(var_ours/spp + var_ref/spp_ref) per
+//!    ([`crate::study::metrics::z_test`]): z = |ours − ref| / √(var_ours/spp + var_ref/spp_ref) per
 //!    pixel and channel, two-sided, Šidák-corrected α = [`ALPHA`] over all pixel-channels;
 //!    passes when at least 99.75% of the pixel-channels pass.
 //! 2. **Bias, global**: per channel, the image mean within [`MEAN_SIGMAS`] standard errors of
@@ -14,16 +14,16 @@
 //!    is √(Σ var_i/spp)/N, for both images) and within [`MEAN_REL_TOL`] of it.
 //! 3. **Convergence**: the least-squares slope of log RMSE against log spp over the steps
 //!    above the reference's noise floor is −1/2 ± [`SLOPE_TOLERANCE`]
-//!    ([`crate::convergence::fit_slope`]).
+//!    ([`crate::study::convergence::fit_slope`]).
 
-use crate::convergence::{
+use crate::error::{Error, Result};
+use crate::io::exr::{self, RgbImage};
+use crate::scene::Scene;
+use crate::study::convergence::{
     fit_slope, reference_noise_floor, run_ladder, Ladder, LadderStep, SlopeFit, FLOOR_FACTOR,
     MIN_FIT_STEPS,
 };
-use crate::error::{Error, Result};
-use crate::io::exr::{self, RgbImage};
-use crate::metrics::{channel_means, z_test, ZTest};
-use crate::scene::Scene;
+use crate::study::metrics::{channel_means, z_test, ZTest};
 use serde::Deserialize;
 use std::collections::BTreeMap;
 use std::fmt::Write as _;
@@ -631,7 +631,7 @@ fn write_scene_section(s: &mut String, r: &SceneResult, plots_dir: &str) {
          reference noise floor \
          √(mean(var_ref)/spp_ref) = {:.3e}\n",
         st.ladder.mean_sample_variance(),
-        crate::convergence::mean_of(refr.variance()),
+        crate::study::convergence::mean_of(refr.variance()),
         st.slope.floor
     );
     let _ = writeln!(

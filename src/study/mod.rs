@@ -1,0 +1,13 @@
+//! The measurement side of penumbra, apart from the renderer: image comparison
+//! ([`compare`], [`metrics`]), convergence ladders and experiments ([`convergence`],
+//! [`experiment`]), the validation study against Mitsuba ([`validation`]), the statistics
+//! behind the tests ([`stats`], [`chi2`]) and plots ([`plot`]).
+
+pub mod chi2;
+pub mod compare;
+pub mod convergence;
+pub mod experiment;
+pub mod metrics;
+pub mod plot;
+pub mod stats;
+pub mod validation;
