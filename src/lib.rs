@@ -24,6 +24,7 @@ pub mod sampler;
 pub mod sampling;
 pub mod scene;
 pub mod shape;
+pub mod spectrum;
 pub mod stats;
 pub mod validation;
 
