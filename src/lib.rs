@@ -22,6 +22,7 @@ pub mod sampler;
 pub mod sampling;
 pub mod scene;
 pub mod shape;
+pub mod spectrum;
 
 // The measurement side.
 pub mod study;
