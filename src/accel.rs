@@ -12,6 +12,11 @@
 //! The slab test's far distance is widened by 1 + 2γ(3) (pbrt-v4 §6.1.2) so rounding can
 //! never cull a box the ray touches; primitive bounds carry a relative pad for the same reason.
 //!
+//! Instancing (Mitsuba's `shapegroup` + `instance`) makes it two-level: each shape group has
+//! its own hierarchy over its shapes, built once, and an instance is one primitive of the
+//! scene's hierarchy holding a transform; a ray reaching it is carried into the group's space
+//! and traced through the group's hierarchy. Memory grows with the groups, not the instances.
+//!
 //! Why not obvhs's own 8-wide CWBVH: its traversal (obvhs 0.4.0, `cwbvh/node.rs`) clamps
 //! every child's entry distance to an absolute `EPSILON = 1e-4`, so children whose exit
 //! distance is below 1e-4 world units are never visited. Hits closer than that are lost: a
@@ -21,25 +26,67 @@
 use crate::geometry::{gamma, Ray};
 use crate::shape::mesh::{intersect_triangle4, RayShear4, Tri4};
 use crate::shape::{Shape, ShapeGeometry, SurfaceInteraction};
-use glam::{Vec3, Vec3A, Vec4};
+use glam::{DMat3, DMat4, DVec3, Vec3, Vec3A, Vec4};
 use obvhs::aabb::Aabb;
 use obvhs::bvh2::Bvh2;
 use obvhs::{Boundable, BvhBuildParams};
 use std::mem::MaybeUninit;
 use std::time::Duration;
 
-/// A primitive as the BVH sees it: triangle `index` of mesh `shape`, or an analytic shape.
+/// A primitive as the BVH sees it: triangle `index` of mesh `shape`, an analytic shape
+/// (sphere, disk, cylinder, SDF grid: one primitive each), or an instance of a shape group.
 /// Triangle vertices are read from the mesh once, when the leaves are packed.
 #[derive(Clone, Copy, Debug)]
 pub enum Primitive {
     Triangle { shape: u32, index: u32 },
-    Sphere { shape: u32 },
-    Disk { shape: u32 },
+    Analytic { shape: u32 },
+    Instance { instance: u32 },
 }
 
-struct Bounded<'a> {
-    prim: &'a Primitive,
-    shapes: &'a [Shape],
+/// A primitive's bounds, for the builder.
+struct Bounded(Aabb);
+
+impl Boundable for Bounded {
+    fn aabb(&self) -> Aabb {
+        self.0
+    }
+}
+
+/// An instance of a shape group: the group's hierarchy (in [`Accel::groups`]) placed by a
+/// transform.
+#[derive(Clone, Debug)]
+pub struct Instance {
+    pub group: u32,
+    pub to_world: DMat4,
+    pub to_local: DMat4,
+}
+
+impl Instance {
+    /// `None` when `to_world` cannot be inverted.
+    pub fn new(group: u32, to_world: DMat4) -> Option<Self> {
+        let to_local = to_world.inverse();
+        (to_world.determinant() != 0.0 && to_local.is_finite()).then_some(Instance {
+            group,
+            to_world,
+            to_local,
+        })
+    }
+
+    /// The ray in the group's space: the same `t` parameterises both.
+    #[inline]
+    fn local_ray(&self, ray: &Ray) -> Ray {
+        Ray::new(
+            self.to_local.transform_point3(ray.o.as_dvec3()).as_vec3(),
+            self.to_local.transform_vector3(ray.d.as_dvec3()).as_vec3(),
+            ray.tmax,
+        )
+    }
+}
+
+/// A shape group's hierarchy over its shapes (which live in the scene's shape list, in the
+/// group's own space).
+pub struct Group {
+    pub accel: Accel,
 }
 
 /// Bounds padded by a relative margin, so that rounding in the slab test cannot cull a
@@ -61,35 +108,46 @@ fn triangle_vertices(shapes: &[Shape], shape: u32, index: u32) -> [Vec3; 3] {
     }
 }
 
-impl Boundable for Bounded<'_> {
-    fn aabb(&self) -> Aabb {
-        match *self.prim {
-            Primitive::Triangle { shape, index } => {
-                padded(triangle_vertices(self.shapes, shape, index))
-            }
-            Primitive::Sphere { shape } => match &self.shapes[shape as usize].geometry {
-                ShapeGeometry::Sphere(s) => {
-                    let r = glam::DVec3::splat(s.radius);
-                    padded([(s.center - r).as_vec3(), (s.center + r).as_vec3()])
-                }
-                _ => Aabb::empty(),
-            },
-            Primitive::Disk { shape } => match &self.shapes[shape as usize].geometry {
-                ShapeGeometry::Disk(d) => padded(d.corners()),
-                _ => Aabb::empty(),
-            },
+/// The padded bounds of one primitive.
+fn primitive_bounds(prim: &Primitive, shapes: &[Shape], instances: &[Instance], groups: &[Group]) -> Aabb {
+    match *prim {
+        Primitive::Triangle { shape, index } => padded(triangle_vertices(shapes, shape, index)),
+        Primitive::Analytic { shape } => match shapes[shape as usize].geometry.bounds() {
+            Some((lo, hi)) => padded([lo, hi]),
+            None => Aabb::empty(),
+        },
+        Primitive::Instance { instance } => {
+            let inst = &instances[instance as usize];
+            let Some((lo, hi)) = groups[inst.group as usize].accel.bounds else {
+                return Aabb::empty();
+            };
+            let corners = (0..8).map(|k| {
+                let c = DVec3::new(
+                    if k & 1 == 0 { lo.x } else { hi.x } as f64,
+                    if k & 2 == 0 { lo.y } else { hi.y } as f64,
+                    if k & 4 == 0 { lo.z } else { hi.z } as f64,
+                );
+                inst.to_world.transform_point3(c).as_vec3()
+            });
+            padded(corners)
         }
     }
 }
 
-/// A closest-hit record: which primitive, where along the ray, and its barycentrics.
+/// A closest-hit record: which primitive, where along the ray, and its barycentrics. For a
+/// hit inside an instance, `prim` is the primitive of the group's hierarchy.
 #[derive(Clone, Copy, Debug)]
 pub struct Hit {
     pub prim: u32,
     pub t: f32,
     pub b1: f32,
     pub b2: f32,
+    /// The instance hit, or [`NO_INSTANCE`].
+    pub instance: u32,
 }
+
+/// [`Hit::instance`] of a hit outside any instance.
+pub const NO_INSTANCE: u32 = u32::MAX;
 
 /// Child reference: an inner node index, [`LEAF`] | a leaf index, or [`EMPTY`].
 const LEAF: u32 = 1 << 31;
@@ -173,6 +231,10 @@ struct LeafContext<'a> {
     shapes: &'a [Shape],
 }
 
+/// A hit on an analytic primitive or inside an instance: (t, barycentrics, instance, slot in
+/// the hierarchy that was hit).
+type InnerHit = Hit;
+
 /// Traversal stack depth without heap allocation; deeper trees (degenerate input) fall back
 /// to a heap-allocated stack.
 const STACK: usize = 128;
@@ -186,15 +248,31 @@ pub struct Accel {
     stack_size: usize,
     /// Primitives in BVH slot order.
     prims: Vec<Primitive>,
+    /// Bounds of every primitive (min, max); `None` without primitives.
+    pub bounds: Option<(Vec3, Vec3)>,
+    /// Instances (primitives of this hierarchy) and the shape groups they place.
+    instances: Vec<Instance>,
+    groups: Vec<Group>,
 }
 
 impl Accel {
     /// Collects every primitive of `shapes` and builds the hierarchy.
     pub fn build(shapes: &[Shape]) -> Self {
+        Self::build_with_instances(shapes, 0..shapes.len(), Vec::new(), Vec::new())
+    }
+
+    /// The hierarchy of the shapes `range` of `shapes` (indices stay global) and of
+    /// `instances`, whose groups are `groups` (each built over its own shapes).
+    pub fn build_with_instances(
+        shapes: &[Shape],
+        range: std::ops::Range<usize>,
+        instances: Vec<Instance>,
+        groups: Vec<Group>,
+    ) -> Self {
         let mut prims = Vec::new();
-        for (i, shape) in shapes.iter().enumerate() {
+        for i in range {
             let shape_id = i as u32;
-            match &shape.geometry {
+            match &shapes[i].geometry {
                 ShapeGeometry::Mesh(m) => {
                     for t in 0..m.triangles.len() {
                         prims.push(Primitive::Triangle {
@@ -203,9 +281,13 @@ impl Accel {
                         });
                     }
                 }
-                ShapeGeometry::Sphere(_) => prims.push(Primitive::Sphere { shape: shape_id }),
-                ShapeGeometry::Disk(_) => prims.push(Primitive::Disk { shape: shape_id }),
+                _ => prims.push(Primitive::Analytic { shape: shape_id }),
             }
+        }
+        for i in 0..instances.len() {
+            prims.push(Primitive::Instance {
+                instance: i as u32,
+            });
         }
         let mut accel = Accel {
             nodes: Vec::new(),
@@ -213,11 +295,26 @@ impl Accel {
             root: EMPTY,
             stack_size: 1,
             prims: Vec::new(),
+            bounds: None,
+            instances,
+            groups,
         };
         if prims.is_empty() {
             return accel;
         }
-        let bounded: Vec<Bounded> = prims.iter().map(|prim| Bounded { prim, shapes }).collect();
+        let bounded: Vec<Bounded> = prims
+            .iter()
+            .map(|prim| Bounded(primitive_bounds(prim, shapes, &accel.instances, &accel.groups)))
+            .collect();
+        let mut all = Aabb::empty();
+        for b in &bounded {
+            if b.0.min.cmple(b.0.max).all() {
+                all = all.union(&b.0);
+            }
+        }
+        if all.min.cmple(all.max).all() {
+            accel.bounds = Some((Vec3::from(all.min), Vec3::from(all.max)));
+        }
         let bvh = obvhs::bvh2::builder::build_bvh2(
             &bounded,
             BvhBuildParams {
@@ -329,19 +426,37 @@ impl Accel {
         self.prims.len()
     }
 
-    /// Analytic primitive test (sphere or disk) of the primitive in `slot`.
+    /// Test of the non-triangle primitive in `slot`: an analytic shape, or an instance (the
+    /// ray carried into the group's space and traced through its hierarchy).
     #[inline(never)]
-    fn test_analytic(&self, slot: u32, ray: &Ray, tmax: f32, shapes: &[Shape]) -> Option<f32> {
+    fn test_analytic(
+        &self,
+        slot: u32,
+        ray: &Ray,
+        tmax: f32,
+        shapes: &[Shape],
+        any: bool,
+    ) -> Option<InnerHit> {
         let ray = Ray { tmax, ..*ray };
         match self.prims[slot as usize] {
-            Primitive::Sphere { shape } => match &shapes[shape as usize].geometry {
-                ShapeGeometry::Sphere(s) => s.intersect(&ray),
-                _ => None,
-            },
-            Primitive::Disk { shape } => match &shapes[shape as usize].geometry {
-                ShapeGeometry::Disk(d) => d.intersect(&ray),
-                _ => None,
-            },
+            Primitive::Analytic { shape } => {
+                let t = shapes[shape as usize].geometry.intersect(&ray)?;
+                Some(Hit {
+                    prim: slot,
+                    t,
+                    b1: 0.0,
+                    b2: 0.0,
+                    instance: NO_INSTANCE,
+                })
+            }
+            Primitive::Instance { instance } => {
+                let inst = &self.instances[instance as usize];
+                let local = inst.local_ray(&ray);
+                let hit = self.groups[inst.group as usize]
+                    .accel
+                    .run(&local, shapes, any)?;
+                Some(Hit { instance, ..hit })
+            }
             Primitive::Triangle { .. } => None,
         }
     }
@@ -372,6 +487,7 @@ impl Accel {
                         t: t[lane],
                         b1: b1[lane],
                         b2: b2[lane],
+                        instance: NO_INSTANCE,
                     });
                     return tmax;
                 }
@@ -385,6 +501,7 @@ impl Accel {
                             t: tmax,
                             b1: b1[lane],
                             b2: b2[lane],
+                            instance: NO_INSTANCE,
                         });
                     }
                 }
@@ -393,14 +510,11 @@ impl Accel {
             while mask != 0 {
                 let lane = mask.trailing_zeros() as usize;
                 mask &= mask - 1;
-                if let Some(t) = self.test_analytic(block.slot[lane], ctx.ray, tmax, ctx.shapes) {
-                    tmax = t;
-                    *best = Some(Hit {
-                        prim: block.slot[lane],
-                        t,
-                        b1: 0.0,
-                        b2: 0.0,
-                    });
+                if let Some(hit) =
+                    self.test_analytic(block.slot[lane], ctx.ray, tmax, ctx.shapes, any)
+                {
+                    tmax = hit.t;
+                    *best = Some(hit);
                     if any {
                         return tmax;
                     }
@@ -516,6 +630,18 @@ impl Accel {
 
     /// The surface interaction of a hit found by [`Accel::intersect`] on `ray`.
     pub fn interaction(&self, hit: &Hit, ray: &Ray, shapes: &[Shape]) -> SurfaceInteraction {
+        if hit.instance != NO_INSTANCE {
+            let inst = &self.instances[hit.instance as usize];
+            let local_ray = inst.local_ray(ray);
+            let local_hit = Hit {
+                instance: NO_INSTANCE,
+                ..*hit
+            };
+            let si = self.groups[inst.group as usize]
+                .accel
+                .interaction(&local_hit, &local_ray, shapes);
+            return instance_to_world(&si, inst);
+        }
         match self.prims[hit.prim as usize] {
             Primitive::Triangle { shape, index, .. } => match &shapes[shape as usize].geometry {
                 ShapeGeometry::Mesh(m) => {
@@ -523,15 +649,40 @@ impl Accel {
                 }
                 _ => unreachable!("triangle primitive of a non-mesh shape"),
             },
-            Primitive::Sphere { shape } => match &shapes[shape as usize].geometry {
-                ShapeGeometry::Sphere(s) => s.interaction(ray, hit.t, shape),
-                _ => unreachable!("sphere primitive of a non-sphere shape"),
-            },
-            Primitive::Disk { shape } => match &shapes[shape as usize].geometry {
-                ShapeGeometry::Disk(d) => d.interaction(ray, hit.t, shape),
-                _ => unreachable!("disk primitive of a non-disk shape"),
-            },
+            Primitive::Analytic { shape } => {
+                shapes[shape as usize]
+                    .geometry
+                    .interaction(ray, hit.t, shape)
+            }
+            Primitive::Instance { .. } => unreachable!("instance hits carry their instance"),
         }
+    }
+}
+
+/// A surface interaction in an instance's group space carried to world space, as Mitsuba's
+/// `instance` does: points and tangents by the transform, normals by its inverse transpose,
+/// the shading frame rebuilt from the world normal and dp/du. The point's error bound is the
+/// local bound through |M| plus the final rounding (the transform itself is applied in f64).
+fn instance_to_world(si: &SurfaceInteraction, inst: &Instance) -> SurfaceInteraction {
+    let m = inst.to_world;
+    let lin = DMat3::from_mat4(m);
+    let normal_m = DMat3::from_mat4(inst.to_local).transpose();
+    let p = m.transform_point3(si.p.as_dvec3());
+    let abs = DMat3::from_cols(lin.x_axis.abs(), lin.y_axis.abs(), lin.z_axis.abs());
+    let p_error = abs * si.p_error.as_dvec3() + p.abs() * (2.0 * f32::EPSILON as f64);
+    let n = |v: Vec3| (normal_m * v.as_dvec3()).normalize_or_zero().as_vec3();
+    let ns = n(si.frame.n);
+    let dp_du = (lin * si.dp_du.as_dvec3()).as_vec3();
+    SurfaceInteraction {
+        p: p.as_vec3(),
+        p_error: p_error.as_vec3(),
+        t: si.t,
+        ng: n(si.ng),
+        frame: crate::geometry::Frame::from_normal_tangent(ns, dp_du),
+        uv: si.uv,
+        dp_du,
+        dp_dv: (lin * si.dp_dv.as_dvec3()).as_vec3(),
+        shape: si.shape,
     }
 }
 
@@ -596,11 +747,11 @@ mod tests {
         let soup = Mesh::new(positions, None, None, triangles, false);
         let spheres: Vec<Shape> = (0..5)
             .map(|i| {
-                shape(ShapeGeometry::Sphere(Sphere {
-                    center: DVec3::new(i as f64 - 2.0, 0.5, -1.0),
-                    radius: 0.4,
-                    flip_normals: false,
-                }))
+                shape(ShapeGeometry::Sphere(Sphere::new(
+                    DVec3::new(i as f64 - 2.0, 0.5, -1.0),
+                    0.4,
+                    false,
+                )))
             })
             .collect();
         let pile = Mesh::new(

@@ -99,6 +99,28 @@ impl Frame {
         Frame { s, t, n }
     }
 
+    /// Mitsuba's shading frame (`SurfaceInteraction::initialize_sh_frame`): normal `n`, and
+    /// the tangent `dp_du` made orthogonal to it (Gram–Schmidt), so that anisotropic BSDFs
+    /// follow the surface's parameterisation. A zero `dp_du` falls back to
+    /// [`Frame::from_normal`], as in Mitsuba; so does a `dp_du` parallel to `n` (Mitsuba gives
+    /// NaN there).
+    pub fn from_normal_tangent(n: Vec3, dp_du: Vec3) -> Self {
+        let s = dp_du - n * n.dot(dp_du);
+        // Scale first, so that tiny or huge tangents (scenes scaled by 1e±20) normalise.
+        let m = s.abs().max_element();
+        if !(m > 0.0 && m.is_finite()) {
+            return Self::from_normal(n);
+        }
+        match (s / m).try_normalize() {
+            Some(s) => Frame {
+                s,
+                t: n.cross(s),
+                n,
+            },
+            None => Self::from_normal(n),
+        }
+    }
+
     #[inline]
     pub fn to_local(&self, v: Vec3) -> Vec3 {
         Vec3::new(v.dot(self.s), v.dot(self.t), v.dot(self.n))

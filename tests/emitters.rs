@@ -38,6 +38,8 @@ fn reference_point(p: Vec3, n: Vec3) -> SurfaceInteraction {
         ng: n,
         frame: Frame::from_normal(n),
         uv: Vec2::ZERO,
+        dp_du: Vec3::ZERO,
+        dp_dv: Vec3::ZERO,
         shape: 0,
     }
 }

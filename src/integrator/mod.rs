@@ -1,13 +1,19 @@
-//! Integrators: estimators of the radiance arriving along a camera ray.
+//! Integrators: estimators of the radiance arriving along a camera ray, and the steps they
+//! share (emission where a ray ends, and one next-event estimation sample).
 
+pub mod direct;
 pub mod path;
 
+pub use direct::DirectIntegrator;
 pub use path::PathIntegrator;
 
-use crate::bsdf::Spectrum;
+use crate::bsdf::{Bsdf, Spectrum};
+use crate::emitter::Emitter;
 use crate::geometry::Ray;
 use crate::sampler::SampleStream;
 use crate::scene::Scene;
+use crate::shape::SurfaceInteraction;
+use glam::{Vec2, Vec3};
 
 /// Counters gathered while tracing, summed over a render.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
@@ -31,6 +37,7 @@ impl std::ops::AddAssign for PathStats {
 #[derive(Clone, Debug)]
 pub enum Integrator {
     Path(PathIntegrator),
+    Direct(DirectIntegrator),
 }
 
 impl Integrator {
@@ -44,6 +51,77 @@ impl Integrator {
     ) -> Spectrum {
         match self {
             Integrator::Path(p) => p.li(scene, ray, sampler, stats),
+            Integrator::Direct(d) => d.li(scene, ray, sampler, stats),
         }
     }
+}
+
+/// The radiance arriving along a ray of direction `d` from where it ended: the area emitter
+/// of the surface it hit (one-sided), or the environment when it escaped (`hit` is `None`).
+#[inline]
+pub(crate) fn emission_at(scene: &Scene, hit: Option<&SurfaceInteraction>, d: Vec3) -> Spectrum {
+    match hit {
+        None => scene.eval_environment(d),
+        Some(si) => match scene.shapes[si.shape as usize].emitter {
+            Some(e) => match &scene.emitters[e as usize] {
+                Emitter::Area(area) => area.eval(si, -d.normalize()),
+                _ => Spectrum::ZERO,
+            },
+            None => Spectrum::ZERO,
+        },
+    }
+}
+
+/// The solid-angle density with which emitter sampling from `p_ref` produces where a ray of
+/// direction `d` ended (as [`emission_at`]); 0 where nothing emits.
+#[inline]
+pub(crate) fn emitter_pdf_at(
+    scene: &Scene,
+    p_ref: Vec3,
+    hit: Option<&SurfaceInteraction>,
+    d: Vec3,
+) -> f32 {
+    match hit {
+        None => scene.pdf_environment(d),
+        Some(si) => scene.pdf_emitter_direction(p_ref, si),
+    }
+}
+
+/// One sample of next-event estimation at `si`, visibility tested: f · L / pdf, and the two
+/// densities its caller's MIS weight needs (the BSDF's only for non-delta emitters).
+pub(crate) struct EmitterSample {
+    pub value: Spectrum,
+    pub emitter_pdf: f32,
+    pub bsdf_pdf: f32,
+    /// A delta emitter: BSDF sampling cannot find it, so no MIS.
+    pub delta: bool,
+}
+
+/// Picks an emitter and a point on it (`u`), evaluates the BSDF towards it and traces the
+/// shadow ray; `None` when the sample contributes nothing.
+#[inline]
+pub(crate) fn sample_emitter(
+    scene: &Scene,
+    si: &SurfaceInteraction,
+    bsdf: &Bsdf,
+    wi: Vec3,
+    u: Vec2,
+    stats: &mut PathStats,
+) -> Option<EmitterSample> {
+    let ds = scene.sample_emitter_direction(si, u)?;
+    let wo = si.frame.to_local(ds.d);
+    let f = bsdf.eval(wi, wo);
+    if f == Spectrum::ZERO {
+        return None;
+    }
+    stats.rays += 1;
+    if scene.occluded(&Scene::shadow_ray(si, &ds)) {
+        return None;
+    }
+    Some(EmitterSample {
+        value: f * ds.radiance / ds.pdf,
+        emitter_pdf: ds.pdf,
+        bsdf_pdf: if ds.delta { 0.0 } else { bsdf.pdf(wi, wo) },
+        delta: ds.delta,
+    })
 }

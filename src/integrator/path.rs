@@ -9,7 +9,7 @@
 
 use crate::bsdf::Spectrum;
 use crate::geometry::Ray;
-use crate::integrator::PathStats;
+use crate::integrator::{sample_emitter, PathStats};
 use crate::sampler::SampleStream;
 use crate::sampling::mis_power;
 use crate::scene::Scene;
@@ -94,21 +94,14 @@ impl PathIntegrator {
             // Next-event estimation.
             let u_light = sampler.next_2d();
             if bsdf.has_smooth_lobe(wi) {
-                if let Some(ds) = scene.sample_emitter_direction(&si, u_light) {
-                    let wo = si.frame.to_local(ds.d);
-                    let f = bsdf.eval(wi, wo);
-                    if f != Vec3::ZERO {
-                        stats.rays += 1;
-                        if !scene.occluded(&Scene::shadow_ray(&si, &ds)) {
-                            // Delta emitters cannot be found by BSDF sampling: no MIS.
-                            let w = if ds.delta {
-                                1.0
-                            } else {
-                                mis_power(ds.pdf, bsdf.pdf(wi, wo))
-                            };
-                            result += throughput * f * ds.radiance * (w / ds.pdf);
-                        }
-                    }
+                if let Some(e) = sample_emitter(scene, &si, bsdf, wi, u_light, stats) {
+                    // Delta emitters cannot be found by BSDF sampling: no MIS.
+                    let w = if e.delta {
+                        1.0
+                    } else {
+                        mis_power(e.emitter_pdf, e.bsdf_pdf)
+                    };
+                    result += throughput * e.value * w;
                 }
             }
 

@@ -1,11 +1,13 @@
 //! Turns a [`SceneDescription`] into a render-ready [`Scene`]: shapes tessellated or set up
-//! in world space, meshes loaded (tobj), materials and emitters resolved, one BVH built.
+//! in world space, meshes loaded (OBJ with tobj, PLY and Mitsuba's serialized format with
+//! [`crate::io`]'s readers), materials and emitters resolved, one BVH built (two levels when
+//! the scene instances shape groups).
 
 use super::description::{
     BsdfDesc, EmitterDesc, FilterDesc, IntegratorDesc, SceneDescription, ShapeDesc, ShapeKind,
 };
 use super::Scene;
-use crate::accel::Accel;
+use crate::accel::{Accel, Group, Instance};
 use crate::bsdf::{Bsdf, Diffuse, TwoSided};
 use crate::camera::{fov_x_degrees, PerspectiveCamera, ThinLens};
 use crate::emitter::{
@@ -14,7 +16,7 @@ use crate::emitter::{
 };
 use crate::error::{Error, Result};
 use crate::film::Filter;
-use crate::integrator::{Integrator, PathIntegrator};
+use crate::integrator::{DirectIntegrator, Integrator, PathIntegrator};
 use crate::sampling::AliasTable;
 use crate::shape::mesh::angle_weighted_normals;
 use crate::shape::{Disk, Mesh, Shape, ShapeGeometry, Sphere};
@@ -43,11 +45,22 @@ pub fn build(desc: &SceneDescription) -> Result<Scene> {
             focus_distance,
         });
     }
-    let mut warnings = Vec::new();
+    let mut warnings = desc.warnings.clone();
     let mut shapes = Vec::new();
     let mut bsdfs = Vec::new();
     let mut emitters = Vec::new();
+    let mut instances = Vec::new();
     for sd in &desc.shapes {
+        if let ShapeKind::Instance { group } = sd.kind {
+            let inst = Instance::new(group as u32, shift * sd.to_world).ok_or_else(|| {
+                Error::scene(
+                    &sd.location,
+                    "to_world of this instance is degenerate (zero scale)",
+                )
+            })?;
+            instances.push(inst);
+            continue;
+        }
         let geometry = shape_geometry(sd, shift, &mut warnings)?;
         let shape_index = shapes.len() as u32;
         bsdfs.push(bsdf(&sd.bsdf));
@@ -73,6 +86,26 @@ pub fn build(desc: &SceneDescription) -> Result<Scene> {
             emitter,
         });
     }
+    // Shape groups: their shapes follow the scene's own, in the group's space, each group with
+    // its own hierarchy. (Groups hold no emitters: the description refuses them.)
+    let top_level = shapes.len();
+    let mut groups = Vec::new();
+    for g in &desc.shape_groups {
+        let first = shapes.len();
+        for sd in &g.shapes {
+            let geometry = shape_geometry(sd, DMat4::IDENTITY, &mut warnings)?;
+            bsdfs.push(bsdf(&sd.bsdf));
+            shapes.push(Shape {
+                geometry,
+                bsdf: (bsdfs.len() - 1) as u32,
+                emitter: None,
+            });
+        }
+        groups.push(Group {
+            accel: Accel::build_with_instances(&shapes, first..shapes.len(), vec![], vec![]),
+        });
+    }
+    let accel = Accel::build_with_instances(&shapes, 0..top_level, instances, groups);
     let mut environment = None;
     for e in &desc.emitters {
         if matches!(e, EmitterDesc::Constant { .. } | EmitterDesc::EnvMap { .. }) {
@@ -83,13 +116,12 @@ pub fn build(desc: &SceneDescription) -> Result<Scene> {
     if emitters.is_empty() {
         warnings.push("the scene has no emitter: the image will be black".into());
     }
-    let bounding_sphere = bounding_sphere(&shapes);
+    let bounding_sphere = bounding_sphere(&accel);
     let powers: Vec<f64> = emitters
         .iter()
         .map(|e| e.power(&shapes, bounding_sphere.1 as f64))
         .collect();
     let emitter_selection = AliasTable::new(&powers);
-    let accel = Accel::build(&shapes);
     let integrator = match desc.integrator {
         IntegratorDesc::Path {
             max_depth,
@@ -104,6 +136,15 @@ pub fn build(desc: &SceneDescription) -> Result<Scene> {
             rr_depth: rr_depth.clamp(1, u32::MAX as i64) as u32,
             hide_emitters,
         }),
+        IntegratorDesc::Direct {
+            emitter_samples,
+            bsdf_samples,
+            hide_emitters,
+        } => Integrator::Direct(DirectIntegrator::new(
+            emitter_samples,
+            bsdf_samples,
+            hide_emitters,
+        )),
     };
     Ok(Scene {
         shapes,
@@ -128,29 +169,17 @@ pub fn build(desc: &SceneDescription) -> Result<Scene> {
     })
 }
 
-/// A sphere around every shape (centre of the bounding box, half its diagonal); radius 1
-/// around the origin for a scene without shapes.
-fn bounding_sphere(shapes: &[Shape]) -> (Vec3, f32) {
-    let (mut lo, mut hi) = (DVec3::splat(f64::INFINITY), DVec3::splat(f64::NEG_INFINITY));
-    let mut add = |p: DVec3| {
-        lo = lo.min(p);
-        hi = hi.max(p);
-    };
-    for s in shapes {
-        match &s.geometry {
-            ShapeGeometry::Mesh(m) => m.positions.iter().for_each(|p| add(p.as_dvec3())),
-            ShapeGeometry::Sphere(sp) => {
-                add(sp.center - DVec3::splat(sp.radius));
-                add(sp.center + DVec3::splat(sp.radius));
-            }
-            ShapeGeometry::Disk(d) => d.corners().iter().for_each(|p| add(p.as_dvec3())),
+/// A sphere around everything in the scene (centre of the hierarchy's bounding box, half
+/// its diagonal); radius 1 around the origin for a scene without shapes.
+fn bounding_sphere(accel: &Accel) -> (Vec3, f32) {
+    match accel.bounds {
+        Some((lo, hi)) if lo.is_finite() && hi.is_finite() => {
+            let (lo, hi) = (lo.as_dvec3(), hi.as_dvec3());
+            let c = (lo + hi) * 0.5;
+            (c.as_vec3(), ((hi - lo).length() * 0.5).max(1e-6) as f32)
         }
+        _ => (Vec3::ZERO, 1.0),
     }
-    if !(lo.is_finite() && hi.is_finite()) {
-        return (Vec3::ZERO, 1.0);
-    }
-    let c = (lo + hi) * 0.5;
-    (c.as_vec3(), ((hi - lo).length() * 0.5).max(1e-6) as f32)
 }
 
 /// An emitter declared at the scene level; `shift` maps world space to the camera-relative
@@ -339,27 +368,45 @@ fn microfacet(d: &crate::scene::description::MicrofacetDesc) -> crate::bsdf::Mic
 }
 
 /// Local-space quads (four corners, counter-clockwise seen from the side the normal points
-/// to) of Mitsuba's `rectangle` ([-1,1]² at z = 0, normal +z) and `cube` ([-1,1]³).
-fn quads(kind: &ShapeKind) -> Vec<[DVec3; 4]> {
-    let rect = [
-        DVec3::new(-1.0, -1.0, 0.0),
-        DVec3::new(1.0, -1.0, 0.0),
-        DVec3::new(1.0, 1.0, 0.0),
-        DVec3::new(-1.0, 1.0, 0.0),
-    ];
+/// to, with their texture coordinates) of Mitsuba's `rectangle` ([-1,1]² at z = 0, normal +z,
+/// uv = (x + 1, y + 1) / 2) and `cube` ([-1,1]³, every face mapped onto [0,1]² with the corner
+/// order and uvs of Mitsuba's `cube.cpp`, which decide the dp/du of its shading frames).
+fn quads(kind: &ShapeKind) -> Vec<([DVec3; 4], [Vec2; 4])> {
+    let v = |x: f64, y: f64, z: f64| DVec3::new(x, y, z);
     match kind {
-        ShapeKind::Rectangle => vec![rect],
+        ShapeKind::Rectangle => vec![(
+            [
+                v(-1.0, -1.0, 0.0),
+                v(1.0, -1.0, 0.0),
+                v(1.0, 1.0, 0.0),
+                v(-1.0, 1.0, 0.0),
+            ],
+            [
+                Vec2::new(0.0, 0.0),
+                Vec2::new(1.0, 0.0),
+                Vec2::new(1.0, 1.0),
+                Vec2::new(0.0, 1.0),
+            ],
+        )],
         ShapeKind::Cube => {
-            // The +z face of the unit cube rotated onto each of the six faces.
-            let face = |m: DMat3| rect.map(|p| m * (p + DVec3::Z));
-            vec![
-                face(DMat3::IDENTITY),
-                face(DMat3::from_rotation_x(std::f64::consts::PI)),
-                face(DMat3::from_rotation_x(std::f64::consts::FRAC_PI_2)),
-                face(DMat3::from_rotation_x(-std::f64::consts::FRAC_PI_2)),
-                face(DMat3::from_rotation_y(std::f64::consts::FRAC_PI_2)),
-                face(DMat3::from_rotation_y(-std::f64::consts::FRAC_PI_2)),
-            ]
+            let uv = [
+                Vec2::new(0.0, 1.0),
+                Vec2::new(1.0, 1.0),
+                Vec2::new(1.0, 0.0),
+                Vec2::new(0.0, 0.0),
+            ];
+            let faces: [[(f64, f64, f64); 4]; 6] = [
+                [(1., -1., -1.), (1., -1., 1.), (-1., -1., 1.), (-1., -1., -1.)],
+                [(1., 1., -1.), (-1., 1., -1.), (-1., 1., 1.), (1., 1., 1.)],
+                [(1., -1., -1.), (1., 1., -1.), (1., 1., 1.), (1., -1., 1.)],
+                [(1., -1., 1.), (1., 1., 1.), (-1., 1., 1.), (-1., -1., 1.)],
+                [(-1., -1., 1.), (-1., 1., 1.), (-1., 1., -1.), (-1., -1., -1.)],
+                [(1., 1., -1.), (1., -1., -1.), (-1., -1., -1.), (-1., 1., -1.)],
+            ];
+            faces
+                .iter()
+                .map(|f| (f.map(|(x, y, z)| v(x, y, z)), uv))
+                .collect()
         }
         _ => Vec::new(),
     }
@@ -387,10 +434,12 @@ fn shape_geometry(
             // transformed local normal points, as Mitsuba does.
             let mirrored = m.determinant() < 0.0;
             let mut positions = Vec::new();
+            let mut uvs = Vec::new();
             let mut triangles = Vec::new();
-            for q in quads(&sd.kind) {
+            for (q, uv) in quads(&sd.kind) {
                 let base = positions.len() as u32;
                 positions.extend(q.iter().map(|p| m.transform_point3(*p).as_vec3()));
+                uvs.extend(uv);
                 let (a, b) = if mirrored {
                     ([0, 2, 1], [2, 0, 3])
                 } else {
@@ -402,7 +451,7 @@ fn shape_geometry(
             Ok(ShapeGeometry::Mesh(Mesh::new(
                 positions,
                 None,
-                None,
+                Some(uvs),
                 triangles,
                 sd.flip_normals,
             )))
@@ -427,12 +476,22 @@ fn shape_geometry(
                     "a sphere's to_world may only rotate, translate and scale uniformly",
                 ));
             }
+            let rotation = DMat3::from_cols(axes[0] / r, axes[1] / r, axes[2] / r);
             Ok(ShapeGeometry::Sphere(Sphere {
                 center: full.transform_point3(DVec3::ZERO),
                 radius: r,
                 flip_normals: sd.flip_normals,
+                rotation,
             }))
         }
+        ShapeKind::Cylinder { .. }
+        | ShapeKind::Ply { .. }
+        | ShapeKind::Serialized { .. }
+        | ShapeKind::SdfGrid { .. } => Err(Error::scene(
+            &sd.location,
+            "this shape is not wired in yet",
+        )),
+        ShapeKind::Instance { .. } => unreachable!("instances are not shapes"),
         ShapeKind::Obj {
             filename,
             face_normals,

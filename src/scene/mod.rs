@@ -4,6 +4,7 @@
 
 pub mod build;
 pub mod description;
+pub mod resolver;
 pub mod xml;
 
 use crate::accel::Accel;
@@ -61,8 +62,8 @@ impl Scene {
 
     /// Builds a scene from XML text; `path` locates it for messages and relative files.
     pub fn from_xml_str(text: &str, path: &Path, defines: &[(String, String)]) -> Result<Scene> {
-        let root = xml::load_str(text, path, defines)?;
-        let desc = description::from_xml(&root)?;
+        let doc = xml::load_str(text, path, defines)?;
+        let desc = description::from_xml(&doc)?;
         build::build(&desc)
     }
 

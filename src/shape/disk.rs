@@ -88,13 +88,26 @@ impl Disk {
         let (p, p_error) = self.world_point(x, y);
         let r = (x * x + y * y).sqrt();
         let phi = y.atan2(x).rem_euclid(2.0 * PI);
+        // Mitsuba's parameterisation: u = r, v = φ/2π; at the centre dp/du is zero and the
+        // shading frame falls back to an arbitrary tangent, as in Mitsuba.
+        let (cos_phi, sin_phi) = if r > 0.0 { (x / r, y / r) } else { (0.0, 0.0) };
+        let dp_du = self
+            .to_world
+            .transform_vector3(DVec3::new(cos_phi, sin_phi, 0.0))
+            .as_vec3();
+        let dp_dv = self
+            .to_world
+            .transform_vector3(DVec3::new(-sin_phi, cos_phi, 0.0) * (2.0 * PI * r))
+            .as_vec3();
         SurfaceInteraction {
             p,
             p_error,
             t,
             ng: self.normal,
-            frame: Frame::from_normal(self.normal),
+            frame: Frame::from_normal_tangent(self.normal, dp_du),
             uv: Vec2::new(r as f32, (phi / (2.0 * PI)) as f32),
+            dp_du,
+            dp_dv,
             shape,
         }
     }

@@ -119,20 +119,40 @@ impl Mesh {
         let (p, p_error) = barycentric_point([p0, p1, p2], [b0, b1, b2], 7);
         let ng = self.face_normal(tri);
         let ns = self.shading_normal(tri, [b0, b1, b2], ng);
-        let uv = match &self.uvs {
+        // Mitsuba's parameterisation: barycentric without texture coordinates (dp/du = p1 −
+        // p0), else the texture coordinates, with an arbitrary basis around the geometric
+        // normal when the triangle's uv map is degenerate.
+        let (dp0, dp1) = (p1 - p0, p2 - p0);
+        let (uv, dp_du, dp_dv) = match &self.uvs {
             Some(uvs) => {
-                let [i0, i1, i2] = self.triangles[tri];
-                uvs[i0 as usize] * b0 + uvs[i1 as usize] * b1 + uvs[i2 as usize] * b2
+                let [i0, i1, i2] = self.triangles[tri].map(|i| uvs[i as usize]);
+                let uv = i0 * b0 + i1 * b1 + i2 * b2;
+                let (duv0, duv1) = (i1 - i0, i2 - i0);
+                let det = duv0.x * duv1.y - duv0.y * duv1.x;
+                if det != 0.0 && det.is_finite() {
+                    let inv = 1.0 / det;
+                    (
+                        uv,
+                        (dp0 * duv1.y - dp1 * duv0.y) * inv,
+                        (dp1 * duv0.x - dp0 * duv1.x) * inv,
+                    )
+                } else {
+                    // Around the normal before flip_normals, as Mitsuba flips last.
+                    let f = Frame::from_normal(if self.flip_normals { -ng } else { ng });
+                    (uv, f.s, f.t)
+                }
             }
-            None => Vec2::new(b1, b2),
+            None => (Vec2::new(b1, b2), dp0, dp1),
         };
         SurfaceInteraction {
             p,
             p_error,
             t,
             ng,
-            frame: Frame::from_normal(ns),
+            frame: Frame::from_normal_tangent(ns, dp_du),
             uv,
+            dp_du,
+            dp_dv,
             shape,
         }
     }

@@ -10,7 +10,7 @@ pub use disk::Disk;
 pub use mesh::Mesh;
 pub use sphere::Sphere;
 
-use crate::geometry::Frame;
+use crate::geometry::{Frame, Ray};
 use glam::{Vec2, Vec3};
 
 /// A local geometry record at a ray hit (pbrt's `SurfaceInteraction`, Mitsuba's
@@ -25,10 +25,16 @@ pub struct SurfaceInteraction {
     pub t: f32,
     /// Geometric normal (unit). Decides the side a spawned ray starts on.
     pub ng: Vec3,
-    /// Shading frame: `frame.n` is the shading normal. BSDFs and one-sided emitters work in
-    /// this frame, as in Mitsuba.
+    /// Shading frame: `frame.n` is the shading normal and `frame.s` follows `dp_du`
+    /// ([`Frame::from_normal_tangent`]). BSDFs and one-sided emitters work in this frame, as
+    /// in Mitsuba.
     pub frame: Frame,
+    /// Surface coordinates, parameterised per shape as in Mitsuba.
     pub uv: Vec2,
+    /// Position partials with respect to `uv` (world space), as Mitsuba defines them per
+    /// shape; `dp_du` orients the shading frame's tangent.
+    pub dp_du: Vec3,
+    pub dp_dv: Vec3,
     /// Index of the shape hit, in `Scene::shapes`.
     pub shape: u32,
 }
@@ -68,6 +74,44 @@ impl ShapeGeometry {
             ShapeGeometry::Mesh(m) => m.sample_position(u),
             ShapeGeometry::Sphere(s) => Some(s.sample_position(u)),
             ShapeGeometry::Disk(d) => Some(d.sample_position(u)),
+        }
+    }
+
+    /// World-space bounds (min, max) of an analytic shape (`None` for meshes, whose
+    /// triangles are bounded one by one).
+    pub fn bounds(&self) -> Option<(Vec3, Vec3)> {
+        match self {
+            ShapeGeometry::Mesh(_) => None,
+            ShapeGeometry::Sphere(s) => {
+                let r = glam::DVec3::splat(s.radius);
+                Some(((s.center - r).as_vec3(), (s.center + r).as_vec3()))
+            }
+            ShapeGeometry::Disk(d) => {
+                let c = d.corners();
+                let lo = c.iter().fold(Vec3::INFINITY, |a, &p| a.min(p));
+                let hi = c.iter().fold(Vec3::NEG_INFINITY, |a, &p| a.max(p));
+                Some((lo, hi))
+            }
+        }
+    }
+
+    /// The closest hit of an analytic shape with 0 < t < ray.tmax (`None` for meshes).
+    #[inline]
+    pub fn intersect(&self, ray: &Ray) -> Option<f32> {
+        match self {
+            ShapeGeometry::Mesh(_) => None,
+            ShapeGeometry::Sphere(s) => s.intersect(ray),
+            ShapeGeometry::Disk(d) => d.intersect(ray),
+        }
+    }
+
+    /// The surface interaction at a hit of an analytic shape found by
+    /// [`ShapeGeometry::intersect`].
+    pub fn interaction(&self, ray: &Ray, t: f32, shape: u32) -> SurfaceInteraction {
+        match self {
+            ShapeGeometry::Mesh(_) => unreachable!("mesh hits are triangle hits"),
+            ShapeGeometry::Sphere(s) => s.interaction(ray, t, shape),
+            ShapeGeometry::Disk(d) => d.interaction(ray, t, shape),
         }
     }
 }

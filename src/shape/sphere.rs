@@ -6,17 +6,32 @@
 use super::{PositionSample, SurfaceInteraction};
 use crate::geometry::{gamma, Frame, Ray};
 use crate::sampling::square_to_uniform_sphere;
-use glam::{DVec3, Vec2, Vec3};
+use glam::{DMat3, DVec3, Vec2, Vec3};
 use std::f64::consts::PI;
 
+/// A sphere placed by a similarity transform: `center`, `radius`, and the rotation of its
+/// local frame, which decides its (u, v) = (φ/2π, θ/π) parameterisation as in Mitsuba
+/// (local +z is the pole, φ measured from local +x).
 #[derive(Clone, Debug)]
 pub struct Sphere {
     pub center: DVec3,
     pub radius: f64,
     pub flip_normals: bool,
+    /// Columns: the local x, y, z axes in world space (orthonormal).
+    pub rotation: DMat3,
 }
 
 impl Sphere {
+    /// A sphere whose local axes are the world axes.
+    pub fn new(center: DVec3, radius: f64, flip_normals: bool) -> Self {
+        Sphere {
+            center,
+            radius,
+            flip_normals,
+            rotation: DMat3::IDENTITY,
+        }
+    }
+
     pub fn area(&self) -> f64 {
         4.0 * PI * self.radius * self.radius
     }
@@ -72,15 +87,28 @@ impl Sphere {
         let local = local * (self.radius / local.length());
         let (p, p_error) = Self::rounded(self.center + local);
         let n = self.normal_at(self.center + local);
-        let phi = local.y.atan2(local.x).rem_euclid(2.0 * PI);
-        let theta = (local.z / self.radius).clamp(-1.0, 1.0).acos();
+        // Mitsuba's parameterisation, in the sphere's own frame (unit radius).
+        let q = self.rotation.transpose() * local / self.radius;
+        let phi = q.y.atan2(q.x).rem_euclid(2.0 * PI);
+        let theta = q.z.clamp(-1.0, 1.0).acos();
+        let rd = (q.x * q.x + q.y * q.y).sqrt();
+        let dp_du = DVec3::new(-q.y, q.x, 0.0) * (2.0 * PI);
+        let dp_dv = if rd > 0.0 {
+            DVec3::new(q.z * q.x / rd, q.z * q.y / rd, -rd) * PI
+        } else {
+            DVec3::new(PI, 0.0, 0.0)
+        };
+        let to_world = self.rotation * self.radius;
+        let dp_du = (to_world * dp_du).as_vec3();
         SurfaceInteraction {
             p,
             p_error,
             t,
             ng: n,
-            frame: Frame::from_normal(n),
+            frame: Frame::from_normal_tangent(n, dp_du),
             uv: Vec2::new((phi / (2.0 * PI)) as f32, (theta / PI) as f32),
+            dp_du,
+            dp_dv: (to_world * dp_dv).as_vec3(),
             shape,
         }
     }
@@ -109,11 +137,7 @@ mod tests {
     use super::*;
 
     fn unit() -> Sphere {
-        Sphere {
-            center: DVec3::new(1.0, 2.0, 3.0),
-            radius: 2.0,
-            flip_normals: false,
-        }
+        Sphere::new(DVec3::new(1.0, 2.0, 3.0), 2.0, false)
     }
 
     #[test]
@@ -158,11 +182,7 @@ mod tests {
 
     #[test]
     fn far_from_origin_hit_point_is_on_the_surface() {
-        let s = Sphere {
-            center: DVec3::new(1e5, -1e5, 1e5),
-            radius: 1e-2,
-            flip_normals: true,
-        };
+        let s = Sphere::new(DVec3::new(1e5, -1e5, 1e5), 1e-2, true);
         let o = Vec3::new(1e5, -1e5, 1e5 + 1.0);
         let r = Ray::new(o, -Vec3::Z, f32::INFINITY);
         let t = s.intersect(&r).unwrap();

@@ -1,6 +1,7 @@
 //! The measurement side of penumbra, apart from the renderer: image comparison
 //! ([`compare`], [`metrics`]), convergence ladders and experiments ([`convergence`],
-//! [`experiment`]), the validation study against Mitsuba ([`validation`]), the statistics
+//! [`experiment`]), the validation study against Mitsuba ([`validation`]) and Mitsuba's own
+//! regression suite ([`suite`]), the statistics
 //! behind the tests ([`stats`], [`chi2`]) and plots ([`plot`]).
 
 pub mod chi2;
@@ -10,4 +11,5 @@ pub mod experiment;
 pub mod metrics;
 pub mod plot;
 pub mod stats;
+pub mod suite;
 pub mod validation;

@@ -3,11 +3,15 @@
 //! This module reads the XML syntax of a Mitsuba 3 scene and resolves everything that is
 //! independent of the plugins themselves:
 //!
-//! - `<include filename="..."/>` (relative to the including file, cycles rejected),
+//! - `<path value="..."/>` and `<include filename="..."/>`, with Mitsuba's file resolver
+//!   ([`FileResolver`]: the including file's directory first, then the `<path>`s, the scene's
+//!   directory and the working directory; include cycles rejected),
 //! - `<default name="..." value="..."/>` and `$name` substitution in every attribute value,
 //!   with command-line overrides taking precedence over the file's defaults,
-//! - `<ref id="..."/>` (and `<alias id="..." as="..."/>`), resolved to the very same
-//!   [`Arc<Object>`] that was declared earlier in document order,
+//! - `<ref id="..."/>` (and `<alias id="..." as="..."/>`), resolved after the whole scene is
+//!   parsed, as Mitsuba does: a reference may name an object declared later in the file or in
+//!   a later include, and every reference to an id yields the very same [`Arc<Object>`];
+//!   reference cycles are rejected,
 //! - `<transform>` blocks, composed exactly like Mitsuba does (each operation `M` is applied
 //!   after the previous ones: `T = M * T`),
 //! - typed properties (`integer`, `float`, `boolean`, `string`, `rgb`, `point`, `vector`,
@@ -21,6 +25,7 @@
 //! to face hostile input: it never panics, bounds its recursion, and rejects deeply nested
 //! documents before building them.
 
+use super::resolver::FileResolver;
 use crate::error::{Error, Location, Result};
 use glam::{DMat3, DMat4, DVec3};
 use roxmltree::{Node, NodeType};
@@ -31,6 +36,7 @@ use std::path::{Path, PathBuf};
 use std::sync::Arc;
 
 /// Tags that declare a plugin object (`<shape type="...">` and so on).
+/// (`<spectrum>` is a property, or an object when it has a `type`.)
 const OBJECT_TAGS: &[&str] = &[
     "integrator",
     "sensor",
@@ -63,6 +69,10 @@ const MAX_XML_DEPTH: usize = 128;
 /// duplicate-attribute check is quadratic in it).
 const MAX_XML_ATTRIBUTES: usize = 256;
 
+/// Longest chain of objects reached through `<ref>`s while resolving one object (nested
+/// objects count too): bounds the resolver's recursion on hostile input.
+const MAX_REFERENCE_DEPTH: usize = 512;
+
 /// Total number of bytes that `$name` substitution may produce while loading one scene; this
 /// stops defaults that expand into each other from blowing up exponentially.
 const SUBSTITUTION_BUDGET: usize = 64 << 20;
@@ -86,11 +96,15 @@ pub enum Value {
     Vector(DVec3),
     /// `<transform name="..">` with its operations composed into one matrix.
     Transform(DMat4),
+    /// `<spectrum name=".." value=".."/>` (one number, or wavelength:value pairs) or
+    /// `filename=".."` (a `.spd` file, read when the scene is parsed); turned into RGB by the
+    /// plugin that reads it ([`crate::spectrum::SpectrumValue::to_rgb`]).
+    Spectrum(crate::spectrum::SpectrumValue),
 }
 
 impl Value {
     /// The XML tag of this kind of value: `"integer"`, `"float"`, `"boolean"`, `"string"`,
-    /// `"rgb"`, `"point"`, `"vector"` or `"transform"`.
+    /// `"rgb"`, `"point"`, `"vector"`, `"transform"` or `"spectrum"`.
     pub fn type_name(&self) -> &'static str {
         match self {
             Value::Integer(_) => "integer",
@@ -101,6 +115,7 @@ impl Value {
             Value::Point(_) => "point",
             Value::Vector(_) => "vector",
             Value::Transform(_) => "transform",
+            Value::Spectrum(_) => "spectrum",
         }
     }
 }
@@ -143,6 +158,14 @@ pub struct Object {
     pub location: Location,
 }
 
+/// A parsed scene file: its `<scene>` root, and the file resolver its plugins look their
+/// files up with (see [`FileResolver`]).
+#[derive(Debug, Clone, PartialEq)]
+pub struct Document {
+    pub root: Object,
+    pub resolver: FileResolver,
+}
+
 /// Loads the scene file at `path` and returns its `<scene>` root.
 ///
 /// `overrides` are `(name, value)` pairs (the CLI's `-D name=value`) that take precedence
@@ -150,7 +173,7 @@ pub struct Object {
 ///
 /// Errors: [`Error::Io`] if the file cannot be read, [`Error::Xml`] if it is not UTF-8 or not
 /// well-formed XML, [`Error::Scene`] for everything the scene says that is not accepted.
-pub fn load_file(path: &Path, overrides: &[(String, String)]) -> Result<Object> {
+pub fn load_file(path: &Path, overrides: &[(String, String)]) -> Result<Document> {
     let text =
         crate::io::read_file_limited(path, crate::io::MAX_SCENE_FILE_BYTES).map_err(|cause| {
             Error::Io {
@@ -167,43 +190,86 @@ pub fn load_file(path: &Path, overrides: &[(String, String)]) -> Result<Object> 
 /// `path` is the file the text came from: it is used for locations in errors and to resolve
 /// relative `<include>`s (it need not exist if there are none). `overrides` are as in
 /// [`load_file`].
-pub fn load_str(text: &str, path: &Path, overrides: &[(String, String)]) -> Result<Object> {
-    let mut loader = Loader::new(overrides);
+pub fn load_str(text: &str, path: &Path, overrides: &[(String, String)]) -> Result<Document> {
     let mut file = SourceFile::new(path, text);
+    let mut loader = Loader::new(overrides, FileResolver::for_scene(&file.dir));
     let doc = parse_document(&file)?;
     loader.include_stack.push(IncludeFrame {
         key: include_key(path),
         shown: path.to_path_buf(),
     });
-    loader.load_root(&mut file, doc.root_element())
+    let raw = loader.load_root(&mut file, doc.root_element())?;
+    let root = loader.resolve_root(raw)?;
+    Ok(Document {
+        root,
+        resolver: loader.resolver,
+    })
 }
 
-/// The document-order state of a load: parameters, declared ids, the include chain.
+/// The document-order state of a load: parameters, parsed objects, declared ids, the
+/// include chain and the file resolver.
 struct Loader {
     /// `$name` values: overrides first, then `<default>`s (the first definition wins).
     params: HashMap<String, String>,
-    /// Every id declared so far.
-    ids: HashMap<String, IdEntry>,
+    /// Every object parsed so far (nested ones included), by index; references point here.
+    arena: Vec<RawObject>,
+    /// Every id declared so far: an object of `arena`, or an alias of another id.
+    ids: HashMap<String, IdDecl>,
     /// The chain of files being included, outermost first.
     include_stack: Vec<IncludeFrame>,
     /// Bytes that `$name` substitution may still produce.
     substitution_budget: usize,
+    /// Where relative file names are looked up (changes with `<path>` and `<include>`).
+    resolver: FileResolver,
+    /// The nesting depth of the children of the current file's `<scene>` root, where
+    /// `<path>` may appear.
+    file_root_depth: usize,
 }
 
-/// The state of a declared id.
-enum IdEntry {
-    /// The object is still being parsed (the id belongs to an enclosing element).
-    Pending(Location),
-    /// The object is complete.
-    Done(Arc<Object>, Location),
+/// An object as parsed, before its references are resolved.
+struct RawObject {
+    tag: String,
+    plugin: String,
+    id: Option<String>,
+    properties: Vec<Property>,
+    children: Vec<RawChild>,
+    location: Location,
+    /// `<tag type=".." id="..">`, for messages.
+    desc: String,
 }
 
-impl IdEntry {
-    fn location(&self) -> &Location {
-        match self {
-            IdEntry::Pending(location) | IdEntry::Done(_, location) => location,
-        }
-    }
+/// A child as parsed: a nested object (an index into the loader's arena) or a reference.
+enum RawChild {
+    Object {
+        name: Option<String>,
+        index: usize,
+    },
+    Ref {
+        name: Option<String>,
+        id: String,
+        location: Location,
+        desc: String,
+    },
+}
+
+/// What a declared id names.
+enum IdTarget {
+    Object(usize),
+    /// `<alias id="of" as="...">`: resolved after parsing, like references.
+    Alias { of: String, desc: String },
+}
+
+struct IdDecl {
+    target: IdTarget,
+    location: Location,
+}
+
+/// How far the resolution of an arena object has got.
+#[derive(Clone, Copy, PartialEq, Eq)]
+enum ResolveState {
+    Todo,
+    /// Being resolved: reaching it again means a reference cycle.
+    InProgress,
 }
 
 /// One file of the include chain.
@@ -602,7 +668,7 @@ fn parse_version(text: &str) -> Option<(u32, u32, u32)> {
 #[derive(Default)]
 struct Body {
     properties: Vec<Property>,
-    children: Vec<Child>,
+    children: Vec<RawChild>,
     /// Names used so far by properties and named children, with where.
     names: HashMap<String, Location>,
 }
@@ -626,8 +692,11 @@ impl Body {
         Ok(())
     }
 
-    fn add_child(&mut self, child: Child, elem: &Elem, parent_desc: &str) -> Result<()> {
-        if let Some(name) = &child.name {
+    fn add_child(&mut self, child: RawChild, elem: &Elem, parent_desc: &str) -> Result<()> {
+        let name = match &child {
+            RawChild::Object { name, .. } | RawChild::Ref { name, .. } => name,
+        };
+        if let Some(name) = name {
             self.claim(name, elem, parent_desc)?;
         }
         self.children.push(child);
@@ -636,12 +705,15 @@ impl Body {
 }
 
 impl Loader {
-    fn new(overrides: &[(String, String)]) -> Self {
+    fn new(overrides: &[(String, String)], resolver: FileResolver) -> Self {
         Loader {
             params: overrides.iter().cloned().collect(),
+            arena: Vec::new(),
             ids: HashMap::new(),
             include_stack: Vec::new(),
             substitution_budget: SUBSTITUTION_BUDGET,
+            resolver,
+            file_root_depth: 1,
         }
     }
 
@@ -739,8 +811,8 @@ impl Loader {
         })
     }
 
-    /// Loads the `<scene>` root of the main file.
-    fn load_root(&mut self, file: &mut SourceFile, root: Node) -> Result<Object> {
+    /// Loads the `<scene>` root of the main file (references not yet resolved).
+    fn load_root(&mut self, file: &mut SourceFile, root: Node) -> Result<RawObject> {
         let elem = self.element(file, root)?;
         if elem.tag != "scene" {
             return Err(elem.error(format!(
@@ -755,13 +827,14 @@ impl Loader {
         file.upgrade = self.check_version(&elem, version)?;
         let mut body = Body::default();
         self.parse_children(file, root, "<scene>", &mut body, 1)?;
-        Ok(Object {
+        Ok(RawObject {
             tag: "scene".to_string(),
             plugin: String::new(),
             id: None,
             properties: body.properties,
             children: body.children,
             location: elem.location,
+            desc: "<scene>".to_string(),
         })
     }
 
@@ -826,6 +899,21 @@ impl Loader {
             "alias" => self.parse_alias(file, &elem),
             "default" => self.parse_default(file, &elem),
             "include" => self.parse_include(file, &elem, parent_desc, body, depth),
+            "path" => self.parse_path(file, &elem, parent_desc, depth),
+            // `<spectrum type="...">` is a spectrum plugin (an object), as in Mitsuba.
+            "spectrum" if elem.get("type").is_some() => {
+                let child = self.parse_object(file, &elem, depth)?;
+                body.add_child(child, &elem, parent_desc)
+            }
+            "spectrum" => {
+                ensure_leaf(file, &elem)?;
+                let property = Property {
+                    name: elem.property_name()?,
+                    value: self.parse_spectrum(&elem)?,
+                    location: elem.location.clone(),
+                };
+                body.add_property(property, &elem, parent_desc)
+            }
             "integer" | "float" | "boolean" | "string" | "rgb" | "point" | "vector" => {
                 ensure_leaf(file, &elem)?;
                 let property = Property {
@@ -860,8 +948,8 @@ impl Loader {
         }
     }
 
-    /// Parses `<shape type=".." id=".." name="..">...</shape>` and friends.
-    fn parse_object(&mut self, file: &SourceFile, elem: &Elem, depth: usize) -> Result<Child> {
+    /// Parses `<shape type=".." id=".." name="..">...</shape>` and friends into the arena.
+    fn parse_object(&mut self, file: &SourceFile, elem: &Elem, depth: usize) -> Result<RawChild> {
         elem.check_attrs(&["type", "id", "name"])?;
         let plugin = elem.require("type")?;
         if plugin.is_empty() {
@@ -874,64 +962,199 @@ impl Loader {
             }
             None => None,
         };
+        // The slot is reserved first, so that the id names it while the children are parsed.
+        let index = self.arena.len();
         let id = match elem.get("id") {
             Some(id) => {
-                self.declare_id(elem, id)?;
+                self.declare_id(elem, id, IdTarget::Object(index))?;
                 Some(id.to_string())
             }
             None => None,
         };
+        self.arena.push(RawObject {
+            tag: String::new(),
+            plugin: String::new(),
+            id: None,
+            properties: Vec::new(),
+            children: Vec::new(),
+            location: elem.location.clone(),
+            desc: String::new(),
+        });
         let mut body = Body::default();
         self.parse_children(file, elem.node, &elem.desc, &mut body, depth + 1)?;
-        let object = Arc::new(Object {
+        self.arena[index] = RawObject {
             tag: elem.tag.clone(),
             plugin: plugin.to_string(),
-            id: id.clone(),
+            id,
             properties: body.properties,
             children: body.children,
             location: elem.location.clone(),
-        });
-        if let Some(id) = id {
-            self.ids.insert(
-                id,
-                IdEntry::Done(Arc::clone(&object), elem.location.clone()),
-            );
-        }
-        Ok(Child { name, object })
+            desc: elem.desc.clone(),
+        };
+        Ok(RawChild::Object { name, index })
     }
 
-    /// Reserves a new id at `elem` (it becomes usable once its object is complete).
-    fn declare_id(&mut self, elem: &Elem, id: &str) -> Result<()> {
+    /// Declares a new id at `elem`.
+    fn declare_id(&mut self, elem: &Elem, id: &str, target: IdTarget) -> Result<()> {
         elem.check_id(id)?;
         if let Some(previous) = self.ids.get(id) {
             return Err(elem.error(format!(
                 "{} has duplicate id \"{id}\" (first declared at {})",
-                elem.desc,
-                previous.location()
+                elem.desc, previous.location
             )));
         }
-        self.ids
-            .insert(id.to_string(), IdEntry::Pending(elem.location.clone()));
+        self.ids.insert(
+            id.to_string(),
+            IdDecl {
+                target,
+                location: elem.location.clone(),
+            },
+        );
         Ok(())
     }
 
-    /// The complete object declared with `id`, for a `<ref>` or `<alias>` at `elem`.
-    fn lookup(&self, elem: &Elem, id: &str) -> Result<Arc<Object>> {
-        match self.ids.get(id) {
-            Some(IdEntry::Done(object, _)) => Ok(Arc::clone(object)),
-            Some(IdEntry::Pending(location)) => Err(elem.error(format!(
-                "{} refers to the enclosing object declared at {location}",
-                elem.desc
-            ))),
-            None => Err(elem.error(format!(
-                "{} refers to unknown id \"{id}\" (objects must be declared before they are referenced)",
-                elem.desc
-            ))),
+    /// The arena index of the object named `id` (following aliases), for a reference
+    /// described by `desc` at `location`.
+    fn lookup(&self, id: &str, location: &Location, desc: &str) -> Result<usize> {
+        let mut id = id;
+        let mut desc = desc;
+        let mut location = location;
+        // Each alias hop names a different id, so a chain longer than the id count cycles.
+        for _ in 0..=self.ids.len() {
+            match self.ids.get(id) {
+                Some(IdDecl {
+                    target: IdTarget::Object(index),
+                    ..
+                }) => return Ok(*index),
+                Some(IdDecl {
+                    target: IdTarget::Alias { of, desc: d },
+                    location: l,
+                }) => {
+                    id = of;
+                    desc = d;
+                    location = l;
+                }
+                None => {
+                    return Err(Error::scene(
+                        location,
+                        format!("{desc} refers to unknown id \"{id}\""),
+                    ))
+                }
+            }
         }
+        Err(Error::scene(
+            location,
+            format!("{desc} is part of a cycle of aliases"),
+        ))
     }
 
-    /// Parses `<ref id=".." name=".."/>`.
-    fn parse_ref(&mut self, file: &SourceFile, elem: &Elem) -> Result<Child> {
+    /// Resolves every reference below the scene root, once the whole scene is parsed.
+    fn resolve_root(&self, raw: RawObject) -> Result<Object> {
+        // Every alias must name an object, referenced or not (checked in document order).
+        let mut aliases: Vec<(&Location, &String)> = self
+            .ids
+            .iter()
+            .filter(|(_, d)| matches!(d.target, IdTarget::Alias { .. }))
+            .map(|(id, d)| (&d.location, id))
+            .collect();
+        aliases.sort_by(|a, b| {
+            (&a.0.file, a.0.line, a.0.col).cmp(&(&b.0.file, b.0.line, b.0.col))
+        });
+        for (location, id) in aliases {
+            self.lookup(id, location, "<alias>")?;
+        }
+        let mut done: Vec<Option<Arc<Object>>> = vec![None; self.arena.len()];
+        let mut state = vec![ResolveState::Todo; self.arena.len()];
+        let children = raw
+            .children
+            .iter()
+            .map(|c| self.resolve_child(c, &mut done, &mut state, 1))
+            .collect::<Result<Vec<_>>>()?;
+        Ok(Object {
+            tag: raw.tag,
+            plugin: raw.plugin,
+            id: raw.id,
+            properties: raw.properties,
+            children,
+            location: raw.location,
+        })
+    }
+
+    fn resolve_child(
+        &self,
+        child: &RawChild,
+        done: &mut Vec<Option<Arc<Object>>>,
+        state: &mut Vec<ResolveState>,
+        depth: usize,
+    ) -> Result<Child> {
+        let (name, index) = match child {
+            RawChild::Object { name, index } => (name, *index),
+            RawChild::Ref {
+                name,
+                id,
+                location,
+                desc,
+            } => {
+                let index = self.lookup(id, location, desc)?;
+                if state[index] == ResolveState::InProgress {
+                    return Err(Error::scene(
+                        location,
+                        format!(
+                            "{desc} refers to {} at {}, which contains it: cyclic reference",
+                            self.arena[index].desc, self.arena[index].location
+                        ),
+                    ));
+                }
+                if depth > MAX_REFERENCE_DEPTH {
+                    return Err(Error::scene(
+                        location,
+                        format!(
+                            "{desc}: references and nested objects chain more than {MAX_REFERENCE_DEPTH} levels deep"
+                        ),
+                    ));
+                }
+                (name, index)
+            }
+        };
+        let object = self.resolve_object(index, done, state, depth)?;
+        Ok(Child {
+            name: name.clone(),
+            object,
+        })
+    }
+
+    fn resolve_object(
+        &self,
+        index: usize,
+        done: &mut Vec<Option<Arc<Object>>>,
+        state: &mut Vec<ResolveState>,
+        depth: usize,
+    ) -> Result<Arc<Object>> {
+        if let Some(object) = &done[index] {
+            return Ok(Arc::clone(object));
+        }
+        state[index] = ResolveState::InProgress;
+        let raw = &self.arena[index];
+        let children = raw
+            .children
+            .iter()
+            .map(|c| self.resolve_child(c, done, state, depth + 1))
+            .collect::<Result<Vec<_>>>()?;
+        let object = Arc::new(Object {
+            tag: raw.tag.clone(),
+            plugin: raw.plugin.clone(),
+            id: raw.id.clone(),
+            properties: raw.properties.clone(),
+            children,
+            location: raw.location.clone(),
+        });
+        state[index] = ResolveState::Todo;
+        done[index] = Some(Arc::clone(&object));
+        Ok(object)
+    }
+
+    /// Parses `<ref id=".." name=".."/>` (resolved after parsing).
+    fn parse_ref(&mut self, file: &SourceFile, elem: &Elem) -> Result<RawChild> {
         ensure_leaf(file, elem)?;
         elem.check_attrs(&["id", "name"])?;
         let id = elem.require("id")?;
@@ -942,21 +1165,98 @@ impl Loader {
             }
             None => None,
         };
-        let object = self.lookup(elem, id)?;
-        Ok(Child { name, object })
+        Ok(RawChild::Ref {
+            name,
+            id: id.to_string(),
+            location: elem.location.clone(),
+            desc: elem.desc.clone(),
+        })
     }
 
-    /// Parses `<alias id="existing" as="new"/>`: `new` becomes another id of the same object.
+    /// Parses `<alias id="existing" as="new"/>`: `new` becomes another id of the same object
+    /// (checked after parsing, so `existing` may be declared later).
     fn parse_alias(&mut self, file: &SourceFile, elem: &Elem) -> Result<()> {
         ensure_leaf(file, elem)?;
         elem.check_attrs(&["id", "as"])?;
-        let object = self.lookup(elem, elem.require("id")?)?;
+        let of = elem.require("id")?.to_string();
         let new_id = elem.require("as")?;
-        self.declare_id(elem, new_id)?;
-        self.ids.insert(
-            new_id.to_string(),
-            IdEntry::Done(object, elem.location.clone()),
-        );
+        let target = IdTarget::Alias {
+            of,
+            desc: elem.desc.clone(),
+        };
+        self.declare_id(elem, new_id, target)
+    }
+
+    /// Parses `<spectrum name=".." value=".."/>` or `filename=".."` (exactly one of the two;
+    /// the file is looked up with the resolver as it stands, as in Mitsuba).
+    fn parse_spectrum(&self, elem: &Elem) -> Result<Value> {
+        use crate::spectrum::SpectrumValue;
+        elem.check_attrs(&["name", "value", "filename"])?;
+        let value = elem.get("value").filter(|v| !v.is_empty());
+        let filename = elem.get("filename").filter(|v| !v.is_empty());
+        let spectrum = match (value, filename) {
+            (Some(v), None) => SpectrumValue::parse(v),
+            (None, Some(f)) => {
+                let path = self.resolver.resolve(Path::new(f));
+                let bytes = crate::io::read_file_limited(&path, crate::io::MAX_SCENE_FILE_BYTES)
+                    .map_err(|e| {
+                        elem.error(format!(
+                            "cannot read spectrum file \"{}\": {e}",
+                            path.display()
+                        ))
+                    })?;
+                SpectrumValue::from_spd(&bytes)
+            }
+            _ => {
+                return Err(elem.error(format!(
+                    "{} needs either a \"value\" or a \"filename\" attribute (but not both)",
+                    elem.desc
+                )))
+            }
+        };
+        spectrum
+            .map(Value::Spectrum)
+            .map_err(|m| elem.error(format!("{m} in {}", elem.desc)))
+    }
+
+    /// Parses `<path value=".."/>`, allowed only directly in a file's `<scene>`: the folder
+    /// (relative to this file's directory, else looked up with the resolver) is searched first
+    /// from now on. Inside an included file it lasts until the end of that file, as in Mitsuba.
+    fn parse_path(
+        &mut self,
+        file: &SourceFile,
+        elem: &Elem,
+        parent_desc: &str,
+        depth: usize,
+    ) -> Result<()> {
+        ensure_leaf(file, elem)?;
+        elem.check_attrs(&["value"])?;
+        if depth != self.file_root_depth {
+            return Err(elem.error(format!(
+                "{} can only appear directly inside <scene> (found in {parent_desc})",
+                elem.desc
+            )));
+        }
+        let value = Path::new(elem.require("value")?);
+        let mut dir = if value.is_absolute() {
+            value.to_path_buf()
+        } else {
+            file.dir.join(value)
+        };
+        if !dir.exists() {
+            let found = self.resolver.resolve(value);
+            if found.exists() {
+                dir = found;
+            }
+        }
+        if !dir.is_dir() {
+            return Err(elem.error(format!(
+                "{}: folder \"{}\" not found",
+                elem.desc,
+                dir.display()
+            )));
+        }
+        self.resolver.prepend(dir);
         Ok(())
     }
 
@@ -997,7 +1297,27 @@ impl Loader {
         if filename.is_empty() {
             return Err(elem.error(format!("empty \"filename\" in {}", elem.desc)));
         }
-        let path = file.dir.join(filename);
+        // Mitsuba looks the file up with the resolver, this file's directory first; whatever
+        // the included file adds to the resolver is dropped after it.
+        let saved_resolver = self.resolver.clone();
+        self.resolver.prepend(file.dir.clone());
+        let path = self.resolver.resolve(Path::new(filename));
+        let result = self.include_file(file, elem, parent_desc, body, depth, path);
+        self.resolver = saved_resolver;
+        result
+    }
+
+    /// Parses the included file at `path` (see [`Loader::parse_include`]).
+    fn include_file(
+        &mut self,
+        file: &SourceFile,
+        elem: &Elem,
+        parent_desc: &str,
+        body: &mut Body,
+        depth: usize,
+        path: PathBuf,
+    ) -> Result<()> {
+        let _ = file;
         if self.include_stack.len() > MAX_INCLUDE_DEPTH {
             return Err(elem.error(format!(
                 "{} exceeds the include depth limit of {MAX_INCLUDE_DEPTH}",
@@ -1048,7 +1368,10 @@ impl Loader {
         if let Some(version) = root_elem.get("version") {
             included.upgrade = self.check_version(&root_elem, version)?;
         }
-        self.parse_children(included, root, parent_desc, body, depth)
+        let saved_root_depth = std::mem::replace(&mut self.file_root_depth, depth);
+        let result = self.parse_children(included, root, parent_desc, body, depth);
+        self.file_root_depth = saved_root_depth;
+        result
     }
 
     /// Parses `<transform name="..">` and its operations into a property.

@@ -1,0 +1,155 @@
+//! Emitters: `area` (on shapes) and the scene-level ones.
+
+use super::*;
+use crate::spectrum::ColorRole;
+
+#[derive(Clone, Debug, PartialEq)]
+pub enum EmitterDesc {
+    Area {
+        radiance: DVec3,
+    },
+    Point {
+        position: DVec3,
+        intensity: DVec3,
+    },
+    Spot {
+        to_world: DMat4,
+        intensity: DVec3,
+        /// Degrees.
+        cutoff_angle: f64,
+        beam_width: f64,
+    },
+    Directional {
+        /// Unit direction in which the light travels (world).
+        direction: DVec3,
+        irradiance: DVec3,
+    },
+    Constant {
+        radiance: DVec3,
+    },
+    EnvMap {
+        filename: PathBuf,
+        scale: f64,
+        to_world: DMat4,
+        location: Location,
+    },
+}
+
+pub(super) fn area_emitter_desc(cx: &Ctx, o: &Object) -> Result<EmitterDesc> {
+    if o.plugin != "area" {
+        return Err(unsupported_plugin(o));
+    }
+    no_children(o)?;
+    let mut p = Props::new(o);
+    let radiance = p.color("radiance", ColorRole::Emission)?;
+    cx.finish(p)?;
+    let radiance = radiance
+        .ok_or_else(|| Error::scene(&o.location, format!("{} needs a 'radiance'", describe(o))))?;
+    if radiance.min_element() < 0.0 {
+        return Err(Error::scene(&o.location, "radiance must not be negative"));
+    }
+    Ok(EmitterDesc::Area { radiance })
+}
+
+pub(super) fn scene_emitter_desc(cx: &Ctx, o: &Object) -> Result<EmitterDesc> {
+    no_children(o)?;
+    let mut p = Props::new(o);
+    let non_negative = |c: DVec3, what: &str| -> Result<DVec3> {
+        if c.min_element() < 0.0 || !c.is_finite() {
+            return Err(Error::scene(
+                &o.location,
+                format!("{what} of {} must be finite and not negative", describe(o)),
+            ));
+        }
+        Ok(c)
+    };
+    let e = match o.plugin.as_str() {
+        "point" => {
+            let to_world = p.transform("to_world")?;
+            let position = p.point("position", to_world.transform_point3(DVec3::ZERO))?;
+            let intensity = p.color("intensity", ColorRole::Emission)?.unwrap_or(DVec3::ONE);
+            EmitterDesc::Point {
+                position,
+                intensity: non_negative(intensity, "intensity")?,
+            }
+        }
+        "spot" => {
+            let to_world = p.transform("to_world")?;
+            let intensity = p.color("intensity", ColorRole::Emission)?.unwrap_or(DVec3::ONE);
+            let cutoff_angle = p.float("cutoff_angle", 20.0)?;
+            let beam_width = p.float("beam_width", cutoff_angle * 0.75)?;
+            if !(cutoff_angle > 0.0 && cutoff_angle <= 180.0) {
+                return Err(Error::scene(
+                    &o.location,
+                    format!("cutoff_angle must lie in (0, 180] degrees, got {cutoff_angle}"),
+                ));
+            }
+            if !(beam_width >= 0.0 && beam_width <= cutoff_angle) {
+                return Err(Error::scene(
+                    &o.location,
+                    format!("beam_width must lie in [0, cutoff_angle], got {beam_width}"),
+                ));
+            }
+            EmitterDesc::Spot {
+                to_world,
+                intensity: non_negative(intensity, "intensity")?,
+                cutoff_angle,
+                beam_width,
+            }
+        }
+        "directional" => {
+            let to_world = p.transform("to_world")?;
+            let direction = p.point("direction", to_world.transform_vector3(DVec3::Z))?;
+            let irradiance = p.color("irradiance", ColorRole::Emission)?.unwrap_or(DVec3::ONE);
+            let direction = direction.try_normalize().ok_or_else(|| {
+                Error::scene(
+                    &o.location,
+                    "the direction of a directional emitter is zero",
+                )
+            })?;
+            EmitterDesc::Directional {
+                direction,
+                irradiance: non_negative(irradiance, "irradiance")?,
+            }
+        }
+        "constant" => {
+            let radiance = p.color("radiance", ColorRole::Emission)?.unwrap_or(DVec3::ONE);
+            EmitterDesc::Constant {
+                radiance: non_negative(radiance, "radiance")?,
+            }
+        }
+        "envmap" => {
+            let filename = file_parameter(cx, &mut p, o)?;
+            let scale = p.float("scale", 1.0)?;
+            if !(scale >= 0.0 && scale.is_finite()) {
+                return Err(Error::scene(
+                    &o.location,
+                    format!("scale of {} must be >= 0, got {scale}", describe(o)),
+                ));
+            }
+            if let Some((f, loc)) = p.string("filter_type")? {
+                if f != "bilinear" {
+                    return Err(Error::scene(
+                        loc,
+                        format!("filter_type '{f}' is not supported (penumbra: bilinear)"),
+                    ));
+                }
+            }
+            EmitterDesc::EnvMap {
+                filename,
+                scale,
+                to_world: p.transform("to_world")?,
+                location: o.location.clone(),
+            }
+        }
+        "area" => {
+            return Err(Error::scene(
+                &o.location,
+                "an area emitter must be nested in a <shape>",
+            ))
+        }
+        _ => return Err(unsupported_plugin(o)),
+    };
+    cx.finish(p)?;
+    Ok(e)
+}

@@ -1,0 +1,127 @@
+//! Integrators: Mitsuba's `path` and `direct`, optionally wrapped in `moment`.
+
+use super::*;
+
+#[derive(Clone, Debug, PartialEq)]
+pub enum IntegratorDesc {
+    /// Mitsuba's `path` integrator. `max_depth` −1 means unbounded.
+    Path {
+        max_depth: i64,
+        rr_depth: i64,
+        hide_emitters: bool,
+    },
+    /// Mitsuba's `direct` integrator: `emitter_samples` and `bsdf_samples` per pixel sample
+    /// (each defaulting to `shading_samples`, default 1), combined with the power heuristic.
+    Direct {
+        emitter_samples: u32,
+        bsdf_samples: u32,
+        hide_emitters: bool,
+    },
+}
+
+/// The integrator, and whether it was wrapped in Mitsuba's `moment` integrator (which renders
+/// its nested integrator and adds the samples' second moment to the output).
+pub(super) fn integrator_desc(o: &Object) -> Result<(IntegratorDesc, bool)> {
+    if o.plugin == "moment" {
+        Props::new(o).finish()?;
+        let mut nested = None;
+        for Child { object: c, .. } in &o.children {
+            if c.tag != "integrator" {
+                return Err(unexpected_child(o, c));
+            }
+            if nested.is_some() {
+                return Err(Error::scene(
+                    &c.location,
+                    format!(
+                        "{}: penumbra supports one nested integrator in a moment integrator",
+                        describe(c)
+                    ),
+                ));
+            }
+            if c.plugin == "moment" {
+                return Err(Error::scene(
+                    &c.location,
+                    "a moment integrator cannot nest another moment integrator",
+                ));
+            }
+            nested = Some(integrator_desc(c)?.0);
+        }
+        let nested = nested.ok_or_else(|| {
+            Error::scene(
+                &o.location,
+                format!("{} needs a nested <integrator>", describe(o)),
+            )
+        })?;
+        return Ok((nested, true));
+    }
+    no_children(o)?;
+    let mut p = Props::new(o);
+    let desc = match o.plugin.as_str() {
+        "path" => {
+            let max_depth = p.int("max_depth", -1)?;
+            let rr_depth = p.int("rr_depth", 5)?;
+            let hide_emitters = p.boolean("hide_emitters", false)?;
+            p.finish()?;
+            if max_depth < -1 {
+                return Err(Error::scene(
+                    &o.location,
+                    format!(
+                        "max_depth of {} must be -1 (unbounded) or >= 0, got {max_depth}",
+                        describe(o)
+                    ),
+                ));
+            }
+            if rr_depth <= 0 {
+                return Err(Error::scene(
+                    &o.location,
+                    format!("rr_depth of {} must be > 0, got {rr_depth}", describe(o)),
+                ));
+            }
+            IntegratorDesc::Path {
+                max_depth,
+                rr_depth,
+                hide_emitters,
+            }
+        }
+        "direct" => {
+            let has = |n: &str| o.properties.iter().any(|q| q.name == n);
+            if has("shading_samples") && (has("emitter_samples") || has("bsdf_samples")) {
+                return Err(Error::scene(
+                    &o.location,
+                    "give either 'shading_samples' or 'emitter_samples'/'bsdf_samples', not both",
+                ));
+            }
+            let shading = p.int("shading_samples", 1)?;
+            let emitter_samples = p.int("emitter_samples", shading)?;
+            let bsdf_samples = p.int("bsdf_samples", shading)?;
+            let hide_emitters = p.boolean("hide_emitters", false)?;
+            p.finish()?;
+            const LIMIT: i64 = 1 << 16;
+            for (name, v) in [
+                ("shading_samples", shading),
+                ("emitter_samples", emitter_samples),
+                ("bsdf_samples", bsdf_samples),
+            ] {
+                if !(0..=LIMIT).contains(&v) {
+                    return Err(Error::scene(
+                        &o.location,
+                        format!("{name} of {} must be in [0, {LIMIT}], got {v}", describe(o)),
+                    ));
+                }
+            }
+            if emitter_samples + bsdf_samples == 0 {
+                return Err(Error::scene(
+                    &o.location,
+                    format!("{} needs at least 1 BSDF or emitter sample", describe(o)),
+                ));
+            }
+            IntegratorDesc::Direct {
+                emitter_samples: emitter_samples as u32,
+                bsdf_samples: bsdf_samples as u32,
+                hide_emitters,
+            }
+        }
+        _ => return Err(unsupported_plugin(o)),
+    };
+    Ok((desc, false))
+}

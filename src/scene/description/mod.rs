@@ -1,0 +1,395 @@
+//! The typed scene description: plain data parsed from the generic XML tree, with Mitsuba's
+//! defaults filled in and every plugin and parameter checked. No rendering types here.
+//!
+//! Anything outside the supported subset is an error naming the element, its plugin type and
+//! its location; nothing is silently ignored.
+
+//!
+//! One file per concern: [`integrator`], [`sensor`] (sensor, film, filter, sampler), [`shape`],
+//! [`bsdf`] and [`emitter`]; this file holds the scene root and the property reader they
+//! share.
+
+mod bsdf;
+mod emitter;
+mod integrator;
+mod sensor;
+mod shape;
+
+pub use bsdf::*;
+pub use emitter::*;
+pub use integrator::*;
+pub use sensor::*;
+pub use shape::*;
+
+use super::resolver::FileResolver;
+use super::xml::{Child, Document, Object, Value};
+use crate::error::{Error, Location, Result};
+use crate::spectrum::ColorRole;
+use glam::{DMat4, DVec3};
+use std::cell::RefCell;
+use std::path::{Path, PathBuf};
+use std::sync::Arc;
+
+#[derive(Clone, Debug, PartialEq)]
+pub struct SceneDescription {
+    pub integrator: IntegratorDesc,
+    /// The integrator was wrapped in Mitsuba's `moment` integrator, which adds the second
+    /// moment of the samples to the output: penumbra then writes the variance channels, as
+    /// `render --variance` does.
+    pub moment: bool,
+    pub sensor: SensorDesc,
+    pub shapes: Vec<ShapeDesc>,
+    /// The shape groups that `instance` shapes refer to (by index).
+    pub shape_groups: Vec<ShapeGroupDesc>,
+    /// Emitters declared at the scene level (point, spot, directional, constant, envmap).
+    pub emitters: Vec<EmitterDesc>,
+    /// Things the user should know that are not errors (clamped spectra, unused emitters).
+    pub warnings: Vec<String>,
+}
+
+/// Largest image side accepted; larger ones are refused before allocating anything.
+pub const MAX_RESOLUTION: u32 = 1 << 16;
+/// Largest pixel count accepted (8192², whose f64 film takes 3.8 GB).
+pub const MAX_PIXELS: u64 = 1 << 26;
+
+/// `<tag type="plugin">` for messages.
+pub(super) fn describe(o: &Object) -> String {
+    if o.plugin.is_empty() {
+        format!("<{}>", o.tag)
+    } else {
+        format!("<{} type=\"{}\">", o.tag, o.plugin)
+    }
+}
+
+/// Reads an object's properties by name, tracking which were used so that unknown ones are
+/// reported.
+pub(super) struct Props<'a> {
+    obj: &'a Object,
+    used: Vec<bool>,
+    /// Warnings met while reading (clamped spectra); see [`Props::take_warnings`].
+    warnings: Vec<String>,
+}
+
+impl<'a> Props<'a> {
+    pub(super) fn new(obj: &'a Object) -> Self {
+        Props {
+            obj,
+            used: vec![false; obj.properties.len()],
+            warnings: Vec::new(),
+        }
+    }
+
+    pub(super) fn take(&mut self, name: &str) -> Option<(&'a Value, &'a Location)> {
+        let i = self.obj.properties.iter().position(|p| p.name == name)?;
+        self.used[i] = true;
+        let p = &self.obj.properties[i];
+        Some((&p.value, &p.location))
+    }
+
+    pub(super) fn wrong_type(&self, name: &str, v: &Value, loc: &Location, expected: &str) -> Error {
+        Error::scene(
+            loc,
+            format!(
+                "parameter '{name}' of {} must be {expected}, not {}",
+                describe(self.obj),
+                v.type_name()
+            ),
+        )
+    }
+
+    pub(super) fn float(&mut self, name: &str, default: f64) -> Result<f64> {
+        match self.take(name) {
+            None => Ok(default),
+            Some((Value::Float(x), _)) => Ok(*x),
+            Some((Value::Integer(i), _)) => Ok(*i as f64),
+            Some((v, loc)) => Err(self.wrong_type(name, v, loc, "a float")),
+        }
+    }
+
+    pub(super) fn int(&mut self, name: &str, default: i64) -> Result<i64> {
+        match self.take(name) {
+            None => Ok(default),
+            Some((Value::Integer(i), _)) => Ok(*i),
+            Some((v, loc)) => Err(self.wrong_type(name, v, loc, "an integer")),
+        }
+    }
+
+    pub(super) fn boolean(&mut self, name: &str, default: bool) -> Result<bool> {
+        match self.take(name) {
+            None => Ok(default),
+            Some((Value::Boolean(b), _)) => Ok(*b),
+            Some((v, loc)) => Err(self.wrong_type(name, v, loc, "a boolean")),
+        }
+    }
+
+    pub(super) fn string(&mut self, name: &str) -> Result<Option<(&'a str, &'a Location)>> {
+        match self.take(name) {
+            None => Ok(None),
+            Some((Value::String(s), loc)) => Ok(Some((s.as_str(), loc))),
+            Some((v, loc)) => Err(self.wrong_type(name, v, loc, "a string")),
+        }
+    }
+
+    /// A colour given as `<rgb>`, one `<float>`/`<integer>` or a `<spectrum>`, as the RGB
+    /// Mitsuba's RGB variants use when a plugin reads it in `role` (see
+    /// [`crate::spectrum`]): spectra are integrated (a clamped out-of-gamut one adds a
+    /// warning), and an `<rgb>` reflectance outside [0, 1] is an error, as in Mitsuba.
+    pub(super) fn color(&mut self, name: &str, role: ColorRole) -> Result<Option<DVec3>> {
+        match self.take(name) {
+            None => Ok(None),
+            Some((Value::Rgb(c), loc)) => {
+                if role == ColorRole::Reflectance
+                    && (c.min_element() < 0.0 || c.max_element() > 1.0)
+                {
+                    return Err(Error::scene(
+                        loc,
+                        format!(
+                            "invalid RGB reflectance value {} {} {} for '{name}' of {}: must be in [0, 1] (Mitsuba refuses it too; use a <float> or a <spectrum> for an unbounded value)",
+                            c.x,
+                            c.y,
+                            c.z,
+                            describe(self.obj)
+                        ),
+                    ));
+                }
+                Ok(Some(*c))
+            }
+            Some((Value::Float(x), _)) => Ok(Some(DVec3::splat(*x))),
+            Some((Value::Integer(i), _)) => Ok(Some(DVec3::splat(*i as f64))),
+            Some((Value::Spectrum(sp), loc)) => {
+                let (rgb, warning) = sp.to_rgb(role);
+                if let Some(w) = warning {
+                    self.warnings.push(format!("{loc}: {w}"));
+                }
+                Ok(Some(rgb))
+            }
+            Some((v, loc)) => Err(self.wrong_type(name, v, loc, "an rgb, float or spectrum")),
+        }
+    }
+
+    pub(super) fn point(&mut self, name: &str, default: DVec3) -> Result<DVec3> {
+        match self.take(name) {
+            None => Ok(default),
+            Some((Value::Point(p), _)) | Some((Value::Vector(p), _)) => Ok(*p),
+            Some((v, loc)) => Err(self.wrong_type(name, v, loc, "a point")),
+        }
+    }
+
+    pub(super) fn transform(&mut self, name: &str) -> Result<DMat4> {
+        match self.take(name) {
+            None => Ok(DMat4::IDENTITY),
+            Some((Value::Transform(m), _)) => Ok(*m),
+            Some((v, loc)) => Err(self.wrong_type(name, v, loc, "a transform")),
+        }
+    }
+
+    /// Fails on the first property that was never read; else returns the warnings met while
+    /// reading (see [`Ctx::finish`], which records them).
+    pub(super) fn finish(self) -> Result<Vec<String>> {
+        for (p, used) in self.obj.properties.iter().zip(&self.used) {
+            if !used {
+                return Err(Error::scene(
+                    &p.location,
+                    format!(
+                        "unknown parameter '{}' ({}) of {}",
+                        p.name,
+                        p.value.type_name(),
+                        describe(self.obj)
+                    ),
+                ));
+            }
+        }
+        Ok(self.warnings)
+    }
+}
+
+/// What every plugin reader needs besides its element: where relative file names are looked
+/// up, and the warnings gathered on the way (Mitsuba logs them; penumbra prints them).
+pub(super) struct Ctx<'a> {
+    pub resolver: &'a FileResolver,
+    pub warnings: RefCell<Vec<String>>,
+    /// Shape groups met so far, keyed by the address of their (shared) XML object, so that
+    /// every instance of one group refers to one description.
+    pub groups: RefCell<Vec<(*const Object, ShapeGroupDesc)>>,
+}
+
+impl Ctx<'_> {
+    pub fn warn(&self, message: String) {
+        self.warnings.borrow_mut().push(message);
+    }
+
+    /// [`Props::finish`], keeping the warnings.
+    pub fn finish(&self, p: Props) -> Result<()> {
+        let w = p.finish()?;
+        self.warnings.borrow_mut().extend(w);
+        Ok(())
+    }
+}
+
+/// The required `filename` string parameter, looked up with Mitsuba's file resolver (the
+/// `<path>`s, then the scene file's directory, then the working directory; see
+/// [`FileResolver`]). A name that is found nowhere is placed in the scene's directory, and
+/// the reader that opens it reports it missing there.
+pub(super) fn file_parameter(cx: &Ctx, p: &mut Props, o: &Object) -> Result<PathBuf> {
+    let (name, _) = p
+        .string("filename")?
+        .ok_or_else(|| Error::scene(&o.location, format!("{} needs a 'filename'", describe(o))))?;
+    if name.is_empty() {
+        return Err(Error::scene(
+            &o.location,
+            format!("empty 'filename' in {}", describe(o)),
+        ));
+    }
+    Ok(cx.resolver.resolve_file(Path::new(name)))
+}
+
+pub(super) fn unsupported_plugin(o: &Object) -> Error {
+    Error::scene(
+        &o.location,
+        format!(
+            "unsupported plugin {}: penumbra does not implement it",
+            describe(o)
+        ),
+    )
+}
+
+pub(super) fn unexpected_child(parent: &Object, child: &Object) -> Error {
+    Error::scene(
+        &child.location,
+        format!(
+            "{} cannot be nested in {}",
+            describe(child),
+            describe(parent)
+        ),
+    )
+}
+
+pub(super) fn positive(value: f64, what: &str, o: &Object) -> Result<f64> {
+    if value > 0.0 && value.is_finite() {
+        Ok(value)
+    } else {
+        Err(Error::scene(
+            &o.location,
+            format!("{what} of {} must be positive, got {value}", describe(o)),
+        ))
+    }
+}
+
+
+/// Converts a parsed scene file ([`super::xml::Document`]) into a typed description.
+pub fn from_xml(doc: &Document) -> Result<SceneDescription> {
+    let root = &doc.root;
+    if root.tag != "scene" {
+        return Err(Error::scene(
+            &root.location,
+            "the root element must be <scene>",
+        ));
+    }
+    Props::new(root).finish()?;
+    let cx = Ctx {
+        resolver: &doc.resolver,
+        warnings: RefCell::new(Vec::new()),
+        groups: RefCell::new(Vec::new()),
+    };
+    let mut integrator = None;
+    let mut sensor = None;
+    let mut shapes = Vec::new();
+    let mut emitters = Vec::new();
+    let mut scene_area_emitters = Vec::new();
+    for Child { object: o, .. } in &root.children {
+        match o.tag.as_str() {
+            "integrator" => {
+                if integrator.is_some() {
+                    return Err(Error::scene(
+                        &o.location,
+                        "a scene has at most one <integrator>",
+                    ));
+                }
+                integrator = Some(integrator_desc(o)?);
+            }
+            "sensor" => {
+                if sensor.is_some() {
+                    return Err(Error::scene(
+                        &o.location,
+                        "penumbra renders scenes with exactly one <sensor>",
+                    ));
+                }
+                sensor = Some(sensor_desc(o)?);
+            }
+            // A shape group is only seen through its instances (Mitsuba: "not visible on
+            // its own"); check it now so that errors surface even when it is never used.
+            "shape" if o.plugin == "shapegroup" => {
+                shape_group(&cx, o)?;
+            }
+            "shape" => shapes.push(shape_desc(&cx, o)?),
+            // An area emitter declared at the scene level (to be referenced by a shape, as in
+            // Mitsuba's cbox-rgb.xml) emits only through the shapes that carry it.
+            "emitter" if o.plugin == "area" => {
+                area_emitter_desc(&cx, o)?;
+                scene_area_emitters.push(Arc::clone(o));
+            }
+            "emitter" => {
+                let e = scene_emitter_desc(&cx, o)?;
+                let is_env = |e: &EmitterDesc| {
+                    matches!(e, EmitterDesc::Constant { .. } | EmitterDesc::EnvMap { .. })
+                };
+                if is_env(&e) && emitters.iter().any(is_env) {
+                    return Err(Error::scene(
+                        &o.location,
+                        "a scene has at most one environment emitter (constant or envmap)",
+                    ));
+                }
+                emitters.push(e);
+            }
+            // Declared for later <ref>s; check them now so that errors surface even when
+            // unreferenced, as Mitsuba instantiates them too.
+            "bsdf" => {
+                bsdf_desc(&cx, o)?;
+            }
+            "texture" => return Err(unsupported_plugin(o)),
+            _ => return Err(unexpected_child(root, o)),
+        }
+    }
+    for e in &scene_area_emitters {
+        let used = root.children.iter().any(|c| {
+            c.object.tag == "shape"
+                && c.object
+                    .children
+                    .iter()
+                    .any(|s| Arc::ptr_eq(&s.object, e))
+        });
+        if !used {
+            cx.warn(format!(
+                "{}: {} is not attached to any shape and emits nothing",
+                e.location,
+                describe(e)
+            ));
+        }
+    }
+    let sensor = sensor.ok_or_else(|| Error::scene(&root.location, "the scene has no <sensor>"))?;
+    let (integrator, moment) = integrator.unwrap_or((
+        IntegratorDesc::Path {
+            max_depth: -1,
+            rr_depth: 5,
+            hide_emitters: false,
+        },
+        false,
+    ));
+    let shape_groups = cx.groups.into_inner().into_iter().map(|(_, g)| g).collect();
+    Ok(SceneDescription {
+        integrator,
+        moment,
+        sensor,
+        shapes,
+        shape_groups,
+        emitters,
+        warnings: cx.warnings.into_inner(),
+    })
+}
+
+pub(super) fn no_children(o: &Object) -> Result<()> {
+    match o.children.first() {
+        Some(c) => Err(unexpected_child(o, &c.object)),
+        None => Ok(()),
+    }
+}

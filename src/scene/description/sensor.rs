@@ -1,0 +1,324 @@
+//! Sensors (`perspective`, `thinlens`, `orthographic`), films (`hdrfilm`), reconstruction
+//! filters and samplers.
+
+use super::*;
+use crate::camera::FovAxis;
+
+#[derive(Clone, Debug, PartialEq)]
+pub struct SensorDesc {
+    /// Field of view in degrees along `fov_axis` (perspective and thin lens; unused by the
+    /// orthographic sensor). Without `fov`, Mitsuba's default `focal_length` of 50 mm on a
+    /// 36 × 24 mm film gives the diagonal field of view.
+    pub fov: f64,
+    pub fov_axis: FovAxis,
+    pub near_clip: f64,
+    pub far_clip: f64,
+    pub to_world: DMat4,
+    pub film: FilmDesc,
+    pub sampler: SamplerDesc,
+    pub location: Location,
+    /// `thinlens`: (aperture_radius, focus_distance); `None` for `perspective`.
+    pub thin_lens: Option<(f64, f64)>,
+    /// Mitsuba's `orthographic` sensor: parallel rays along local +z from the local
+    /// [-1, 1]² square (scaled by `to_world`).
+    pub orthographic: bool,
+}
+
+#[derive(Clone, Debug, PartialEq)]
+pub struct FilmDesc {
+    pub width: u32,
+    pub height: u32,
+    pub rfilter: FilterDesc,
+}
+
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum FilterDesc {
+    Box,
+    Tent { radius: f64 },
+    Gaussian { stddev: f64 },
+}
+
+#[derive(Clone, Debug, PartialEq)]
+pub struct SamplerDesc {
+    pub sample_count: u32,
+    pub seed: u64,
+}
+
+/// Mitsuba's `focal_length` (a string "<x>mm", or a number of millimetres) as the diagonal
+/// field of view of a 36 × 24 mm film, in degrees.
+fn focal_length_fov(p: &mut Props, o: &Object) -> Result<f64> {
+    let text = match p.take("focal_length") {
+        None => "50mm".to_string(),
+        Some((Value::String(s), _)) => s.clone(),
+        Some((Value::Float(x), _)) => x.to_string(),
+        Some((Value::Integer(i), _)) => i.to_string(),
+        Some((v, loc)) => return Err(p.wrong_type("focal_length", v, loc, "a string")),
+    };
+    let number = text.strip_suffix("mm").unwrap_or(&text).trim();
+    match number.parse::<f64>() {
+        Ok(f) if f > 0.0 && f.is_finite() => {
+            Ok(2.0 * ((36.0f64 * 36.0 + 24.0 * 24.0).sqrt() / (2.0 * f)).atan().to_degrees())
+        }
+        _ => Err(Error::scene(
+            &o.location,
+            format!(
+                "could not parse the focal length '{text}' of {} (must be of the form <x>mm with x > 0)",
+                describe(o)
+            ),
+        )),
+    }
+}
+
+pub(super) fn sensor_desc(o: &Object) -> Result<SensorDesc> {
+    if !matches!(o.plugin.as_str(), "perspective" | "thinlens" | "orthographic") {
+        return Err(unsupported_plugin(o));
+    }
+    let orthographic = o.plugin == "orthographic";
+    let mut p = Props::new(o);
+    let aperture_radius = if o.plugin == "thinlens" {
+        Some(p.float("aperture_radius", f64::NAN)?)
+    } else {
+        None
+    };
+    let has = |n: &str| o.properties.iter().any(|q| q.name == n);
+    let (fov, fov_axis) = if orthographic {
+        (90.0, FovAxis::X)
+    } else if has("fov") {
+        if has("focal_length") {
+            return Err(Error::scene(
+                &o.location,
+                format!(
+                    "{}: give either a focal length ('focal_length') or a field of view ('fov')",
+                    describe(o)
+                ),
+            ));
+        }
+        let fov = p.float("fov", f64::NAN)?;
+        let fov_axis = match p.string("fov_axis")? {
+            None => FovAxis::X,
+            // Mitsuba lower-cases the axis name.
+            Some((s, loc)) => match s.to_ascii_lowercase().as_str() {
+                "x" => FovAxis::X,
+                "y" => FovAxis::Y,
+                "diagonal" => FovAxis::Diagonal,
+                "smaller" => FovAxis::Smaller,
+                "larger" => FovAxis::Larger,
+                _ => {
+                    return Err(Error::scene(
+                        loc,
+                        format!("fov_axis must be x, y, diagonal, smaller or larger, not '{s}'"),
+                    ))
+                }
+            },
+        };
+        (fov, fov_axis)
+    } else {
+        // Mitsuba ignores fov_axis with a focal length; accept it likewise.
+        let _ = p.string("fov_axis")?;
+        (focal_length_fov(&mut p, o)?, FovAxis::Diagonal)
+    };
+    let near_clip = p.float("near_clip", 0.01)?;
+    let far_clip = p.float("far_clip", 1e4)?;
+    // Mitsuba's projective cameras accept focus_distance (default: far_clip); a pinhole or
+    // an orthographic camera has no use for it.
+    let focus_distance = p.float("focus_distance", far_clip)?;
+    let to_world = p.transform("to_world")?;
+    p.finish()?;
+    if !(fov > 0.0 && fov < 180.0) {
+        return Err(Error::scene(
+            &o.location,
+            format!(
+                "fov of {} must lie in (0, 180) degrees, got {fov}",
+                describe(o)
+            ),
+        ));
+    }
+    positive(near_clip, "near_clip", o)?;
+    positive(far_clip, "far_clip", o)?;
+    let thin_lens = match aperture_radius {
+        None => None,
+        Some(a) if a.is_nan() => {
+            return Err(Error::scene(
+                &o.location,
+                format!("{} needs an 'aperture_radius'", describe(o)),
+            ))
+        }
+        Some(a) => {
+            if !(a >= 0.0 && a.is_finite()) {
+                return Err(Error::scene(
+                    &o.location,
+                    format!("aperture_radius of {} must be >= 0, got {a}", describe(o)),
+                ));
+            }
+            Some((a, positive(focus_distance, "focus_distance", o)?))
+        }
+    };
+    if near_clip >= far_clip {
+        return Err(Error::scene(
+            &o.location,
+            format!("near_clip ({near_clip}) must be less than far_clip ({far_clip})"),
+        ));
+    }
+    let mut film = None;
+    let mut sampler = None;
+    for Child { object: c, .. } in &o.children {
+        match c.tag.as_str() {
+            "film" if film.is_none() => film = Some(film_desc(c)?),
+            "sampler" if sampler.is_none() => sampler = Some(sampler_desc(c)?),
+            _ => return Err(unexpected_child(o, c)),
+        }
+    }
+    Ok(SensorDesc {
+        fov,
+        fov_axis,
+        near_clip,
+        far_clip,
+        to_world,
+        // Mitsuba's default film: hdrfilm 768x576 with the gaussian filter.
+        film: film.unwrap_or(FilmDesc {
+            width: 768,
+            height: 576,
+            rfilter: FilterDesc::Gaussian { stddev: 0.5 },
+        }),
+        sampler: sampler.unwrap_or(SamplerDesc {
+            sample_count: 4,
+            seed: 0,
+        }),
+        location: o.location.clone(),
+        thin_lens,
+        orthographic,
+    })
+}
+
+pub(super) fn film_desc(o: &Object) -> Result<FilmDesc> {
+    if o.plugin != "hdrfilm" {
+        return Err(unsupported_plugin(o));
+    }
+    let mut p = Props::new(o);
+    let width = p.int("width", 768)?;
+    let height = p.int("height", 576)?;
+    if let Some((f, loc)) = p.string("component_format")? {
+        // The output is always float32 EXR; the other formats are accepted like Mitsuba.
+        if !matches!(f, "float16" | "float32" | "uint32") {
+            return Err(Error::scene(
+                loc,
+                format!("component_format must be float16, float32 or uint32, not '{f}'"),
+            ));
+        }
+    }
+    if let Some((f, loc)) = p.string("pixel_format")? {
+        if f != "rgb" {
+            return Err(Error::scene(
+                loc,
+                format!("pixel_format '{f}' is not supported (penumbra writes rgb)"),
+            ));
+        }
+    }
+    p.finish()?;
+    for (name, v) in [("width", width), ("height", height)] {
+        if v <= 0 || v > MAX_RESOLUTION as i64 {
+            return Err(Error::scene(
+                &o.location,
+                format!("film {name} must be between 1 and {MAX_RESOLUTION}, got {v}"),
+            ));
+        }
+    }
+    if width as u64 * height as u64 > MAX_PIXELS {
+        return Err(Error::scene(
+            &o.location,
+            format!("film of {width}x{height} pixels exceeds the limit of {MAX_PIXELS} pixels"),
+        ));
+    }
+    let mut rfilter = None;
+    for Child { object: c, .. } in &o.children {
+        match c.tag.as_str() {
+            "rfilter" if rfilter.is_none() => rfilter = Some(rfilter_desc(c)?),
+            _ => return Err(unexpected_child(o, c)),
+        }
+    }
+    // Mitsuba's default reconstruction filter.
+    let rfilter = rfilter.unwrap_or(FilterDesc::Gaussian { stddev: 0.5 });
+    Ok(FilmDesc {
+        width: width as u32,
+        height: height as u32,
+        rfilter,
+    })
+}
+
+pub(super) fn rfilter_desc(c: &Object) -> Result<FilterDesc> {
+    no_children(c)?;
+    let mut fp = Props::new(c);
+    let f = match c.plugin.as_str() {
+        "box" => {
+            let radius = fp.float("radius", 0.5)?;
+            if radius != 0.5 {
+                return Err(Error::scene(
+                    &c.location,
+                    "the box filter is supported with its default radius 0.5 only",
+                ));
+            }
+            FilterDesc::Box
+        }
+        "tent" => FilterDesc::Tent {
+            radius: positive(fp.float("radius", 1.0)?, "radius", c)?,
+        },
+        "gaussian" => FilterDesc::Gaussian {
+            stddev: positive(fp.float("stddev", 0.5)?, "stddev", c)?,
+        },
+        _ => {
+            return Err(Error::scene(
+                &c.location,
+                format!(
+                    "unsupported plugin {}: penumbra supports the box, tent and gaussian filters",
+                    describe(c)
+                ),
+            ))
+        }
+    };
+    fp.finish()?;
+    if let FilterDesc::Tent { radius: r } | FilterDesc::Gaussian { stddev: r } = f {
+        // At most 15 pixels of reach per side: beyond that a filter is surely a mistake.
+        let radius = if matches!(f, FilterDesc::Gaussian { .. }) {
+            4.0 * r
+        } else {
+            r
+        };
+        if radius > 7.5 {
+            return Err(Error::scene(
+                &c.location,
+                format!("the radius of {} must be at most 7.5 pixels", describe(c)),
+            ));
+        }
+    }
+    Ok(f)
+}
+
+pub(super) fn sampler_desc(o: &Object) -> Result<SamplerDesc> {
+    if o.plugin != "independent" {
+        return Err(unsupported_plugin(o));
+    }
+    no_children(o)?;
+    let mut p = Props::new(o);
+    let sample_count = p.int("sample_count", 4)?;
+    let seed = p.int("seed", 0)?;
+    p.finish()?;
+    if sample_count <= 0 || sample_count > u32::MAX as i64 {
+        return Err(Error::scene(
+            &o.location,
+            format!(
+                "sample_count must be between 1 and {}, got {sample_count}",
+                u32::MAX
+            ),
+        ));
+    }
+    if seed < 0 {
+        return Err(Error::scene(
+            &o.location,
+            format!("seed must be >= 0, got {seed}"),
+        ));
+    }
+    Ok(SamplerDesc {
+        sample_count: sample_count as u32,
+        seed: seed as u64,
+    })
+}
