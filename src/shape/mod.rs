@@ -2,10 +2,12 @@
 //! and analytic disks, all in world space. Each shape samples points uniformly by area (for
 //! area lights) and turns a ray hit into a [`SurfaceInteraction`].
 
+pub mod cylinder;
 pub mod disk;
 pub mod mesh;
 pub mod sphere;
 
+pub use cylinder::Cylinder;
 pub use disk::Disk;
 pub use mesh::Mesh;
 pub use sphere::Sphere;
