@@ -215,7 +215,7 @@ impl Cylinder {
         let b = -(o.x * d.x + o.y * d.y);
         let (lx, ly) = (o.x + (b / a) * d.x, o.y + (b / a) * d.y);
         let disc = a * (1.0 - (lx * lx + ly * ly));
-        if !(disc >= 0.0) {
+        if disc.is_nan() || disc < 0.0 {
             return None;
         }
         let c = o.x * o.x + o.y * o.y - 1.0;
