@@ -1,11 +1,14 @@
 //! Shapes: triangle meshes (rectangle, cube and OBJ files become meshes), analytic spheres
 //! and analytic disks, all in world space. Each shape samples points uniformly by area (for
-//! area lights) and turns a ray hit into a [`SurfaceInteraction`].
+//! area lights) and turns a ray hit into a [`SurfaceInteraction`]. The analytic [`Cylinder`]
+//! is implemented and tested but not yet one of the [`ShapeGeometry`] kinds.
 
+pub mod cylinder;
 pub mod disk;
 pub mod mesh;
 pub mod sphere;
 
+pub use cylinder::Cylinder;
 pub use disk::Disk;
 pub use mesh::Mesh;
 pub use sphere::Sphere;
