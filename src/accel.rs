@@ -704,8 +704,7 @@ mod tests {
                     .filter_map(|i| intersect_triangle(&shear, &m.vertices(i), ray.tmax))
                     .map(|h| h.0)
                     .min_by(f32::total_cmp),
-                ShapeGeometry::Sphere(s) => s.intersect(ray),
-                ShapeGeometry::Disk(d) => d.intersect(ray),
+                g => g.intersect(ray),
             };
             if let Some(t) = t {
                 best = Some(best.map_or(t, |b: f32| b.min(t)));

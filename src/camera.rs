@@ -388,7 +388,9 @@ mod tests {
             "<scene version=\"3.0.0\"><sensor type=\"orthographic\">\
              <transform name=\"to_world\">{ops}</transform></sensor></scene>"
         );
-        let root = load_str(&xml, std::path::Path::new("inline.xml"), &[]).unwrap();
+        let root = load_str(&xml, std::path::Path::new("inline.xml"), &[])
+            .unwrap()
+            .root;
         let sensor = &root.children[0].object;
         match &sensor
             .properties

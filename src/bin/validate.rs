@@ -177,6 +177,10 @@ fn run() -> Result<()> {
     let start = Instant::now();
     let mut results: Vec<SceneResult> = Vec::new();
     for entry in &selected {
+        let steps = match entry.max_spp {
+            Some(m) if m < args.max_spp => spp_ladder(m),
+            _ => steps.clone(),
+        };
         eprintln!("{}: ladder {:?}", entry.name, steps);
         let name = entry.name.clone();
         let r = validate_scene(root, entry, &steps, args.seed, args.threads, &mut |s| {

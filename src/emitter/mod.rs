@@ -103,7 +103,8 @@ impl Emitter {
     }
 
     /// Estimated emitted power (mean over the RGB channels), for choosing emitters in
-    /// proportion to it. Emitters at infinity count what falls on the scene's bounding
+    /// proportion to it (light tracing will; next-event estimation picks uniformly, as
+    /// Mitsuba does). Emitters at infinity count what falls on the scene's bounding
     /// sphere of radius `scene_radius`:
     /// - area: π · A · L (one-sided Lambertian emitter)
     /// - point: 4π · I

@@ -9,7 +9,7 @@ use super::description::{
 use super::Scene;
 use crate::accel::{Accel, Group, Instance};
 use crate::bsdf::{Bsdf, Diffuse, TwoSided};
-use crate::camera::{fov_x_degrees, PerspectiveCamera, ThinLens};
+use crate::camera::{fov_x_degrees, Camera, OrthographicCamera, PerspectiveCamera, ThinLens};
 use crate::emitter::{
     AreaEmitter, ConstantEmitter, DirectionalEmitter, Emitter, EnvMapEmitter, PointEmitter,
     SpotEmitter,
@@ -17,9 +17,8 @@ use crate::emitter::{
 use crate::error::{Error, Result};
 use crate::film::Filter;
 use crate::integrator::{DirectIntegrator, Integrator, PathIntegrator};
-use crate::sampling::AliasTable;
 use crate::shape::mesh::angle_weighted_normals;
-use crate::shape::{Disk, Mesh, Shape, ShapeGeometry, Sphere};
+use crate::shape::{Cylinder, Disk, Mesh, Shape, ShapeGeometry, Sphere};
 use glam::{DMat3, DMat4, DVec3, Vec2, Vec3};
 use std::path::Path;
 
@@ -32,19 +31,24 @@ pub fn build(desc: &SceneDescription) -> Result<Scene> {
     let shift = DMat4::from_translation(-s.to_world.transform_point3(DVec3::ZERO));
     let (width, height) = (s.film.width as usize, s.film.height as usize);
     let aspect = width as f64 / height as f64;
-    let mut camera = PerspectiveCamera::new(
-        shift * s.to_world,
-        fov_x_degrees(s.fov, s.fov_axis, aspect),
-        aspect,
-        s.near_clip,
-        s.far_clip,
-    );
-    if let Some((aperture_radius, focus_distance)) = s.thin_lens {
-        camera = camera.with_thin_lens(ThinLens {
-            aperture_radius,
-            focus_distance,
-        });
-    }
+    let camera: Camera = if s.orthographic {
+        OrthographicCamera::new(shift * s.to_world, aspect, s.near_clip, s.far_clip).into()
+    } else {
+        let mut camera = PerspectiveCamera::new(
+            shift * s.to_world,
+            fov_x_degrees(s.fov, s.fov_axis, aspect),
+            aspect,
+            s.near_clip,
+            s.far_clip,
+        );
+        if let Some((aperture_radius, focus_distance)) = s.thin_lens {
+            camera = camera.with_thin_lens(ThinLens {
+                aperture_radius,
+                focus_distance,
+            });
+        }
+        camera.into()
+    };
     let mut warnings = desc.warnings.clone();
     let mut shapes = Vec::new();
     let mut bsdfs = Vec::new();
@@ -117,11 +121,6 @@ pub fn build(desc: &SceneDescription) -> Result<Scene> {
         warnings.push("the scene has no emitter: the image will be black".into());
     }
     let bounding_sphere = bounding_sphere(&accel);
-    let powers: Vec<f64> = emitters
-        .iter()
-        .map(|e| e.power(&shapes, bounding_sphere.1 as f64))
-        .collect();
-    let emitter_selection = AliasTable::new(&powers);
     let integrator = match desc.integrator {
         IntegratorDesc::Path {
             max_depth,
@@ -163,7 +162,6 @@ pub fn build(desc: &SceneDescription) -> Result<Scene> {
         seed: s.sampler.seed,
         integrator,
         warnings,
-        emitter_selection,
         environment,
         bounding_sphere,
     })
@@ -484,8 +482,14 @@ fn shape_geometry(
                 rotation,
             }))
         }
-        ShapeKind::Cylinder { .. }
-        | ShapeKind::Ply { .. }
+        ShapeKind::Cylinder { p0, p1, radius } => {
+            let c = Cylinder::new(*p0, *p1, *radius, m, sd.flip_normals).ok_or_else(degenerate)?;
+            for w in c.warnings() {
+                warnings.push(format!("{}: {w}", sd.location));
+            }
+            Ok(ShapeGeometry::Cylinder(c))
+        }
+        ShapeKind::Ply { .. }
         | ShapeKind::Serialized { .. }
         | ShapeKind::SdfGrid { .. } => Err(Error::scene(
             &sd.location,

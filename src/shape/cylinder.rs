@@ -307,6 +307,8 @@ impl Cylinder {
             ng: frame.n,
             frame,
             uv: Vec2::new((phi / (2.0 * PI)) as f32, local.z as f32),
+            dp_du: dp_du.as_vec3(),
+            dp_dv: self.dp_dv(),
             shape,
         }
     }
@@ -331,7 +333,7 @@ impl Cylinder {
 mod tests {
     use super::*;
     use crate::geometry::offset_ray_origin;
-    use crate::stats::chi2_sf;
+    use crate::study::stats::chi2_sf;
     use rand::{RngExt, SeedableRng};
 
     /// Mitsuba 3.9.1's numbers, from validation/mitsuba/cylinder_hits.py.

@@ -1,7 +1,7 @@
-//! Shapes: triangle meshes (rectangle, cube and OBJ files become meshes), analytic spheres
-//! and analytic disks, all in world space. Each shape samples points uniformly by area (for
-//! area lights) and turns a ray hit into a [`SurfaceInteraction`]. The analytic [`Cylinder`]
-//! is implemented and tested but not yet one of the [`ShapeGeometry`] kinds.
+//! Shapes: triangle meshes (rectangle, cube, OBJ, PLY and serialized files become meshes),
+//! analytic spheres, disks and cylinders, all in world space (or a shape group's space). Each
+//! shape samples points uniformly by area (for area lights) and turns a ray hit into a
+//! [`SurfaceInteraction`] with Mitsuba's (u, v) parameterisation and dp/du.
 
 pub mod cylinder;
 pub mod disk;
@@ -59,6 +59,7 @@ pub enum ShapeGeometry {
     Mesh(Mesh),
     Sphere(Sphere),
     Disk(Disk),
+    Cylinder(Cylinder),
 }
 
 impl ShapeGeometry {
@@ -68,6 +69,7 @@ impl ShapeGeometry {
             ShapeGeometry::Mesh(m) => m.area(),
             ShapeGeometry::Sphere(s) => s.area(),
             ShapeGeometry::Disk(d) => d.area(),
+            ShapeGeometry::Cylinder(c) => c.area(),
         }
     }
 
@@ -77,6 +79,7 @@ impl ShapeGeometry {
             ShapeGeometry::Mesh(m) => m.sample_position(u),
             ShapeGeometry::Sphere(s) => Some(s.sample_position(u)),
             ShapeGeometry::Disk(d) => Some(d.sample_position(u)),
+            ShapeGeometry::Cylinder(c) => Some(c.sample_position(u)),
         }
     }
 
@@ -95,6 +98,10 @@ impl ShapeGeometry {
                 let hi = c.iter().fold(Vec3::NEG_INFINITY, |a, &p| a.max(p));
                 Some((lo, hi))
             }
+            ShapeGeometry::Cylinder(c) => {
+                let [lo, hi] = c.bounds();
+                Some((lo, hi))
+            }
         }
     }
 
@@ -105,6 +112,7 @@ impl ShapeGeometry {
             ShapeGeometry::Mesh(_) => None,
             ShapeGeometry::Sphere(s) => s.intersect(ray),
             ShapeGeometry::Disk(d) => d.intersect(ray),
+            ShapeGeometry::Cylinder(c) => c.intersect(ray),
         }
     }
 
@@ -115,6 +123,7 @@ impl ShapeGeometry {
             ShapeGeometry::Mesh(_) => unreachable!("mesh hits are triangle hits"),
             ShapeGeometry::Sphere(s) => s.interaction(ray, t, shape),
             ShapeGeometry::Disk(d) => d.interaction(ray, t, shape),
+            ShapeGeometry::Cylinder(c) => c.interaction(ray, t, shape),
         }
     }
 }

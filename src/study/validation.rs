@@ -74,6 +74,15 @@ pub struct ValidationScene {
     pub reference_spp: u32,
     /// Top of the tests' short ladder.
     pub test_spp: u32,
+    /// Top of the study's ladder for this scene, when lower than `--max-spp` (large images).
+    #[serde(default)]
+    pub max_spp: Option<u32>,
+    /// For the reference only: the integrator Mitsuba renders with instead of the scene's,
+    /// as a `mi.load_dict` dictionary in JSON (render_all.py reads it). Used where Mitsuba
+    /// 3.9.1 is wrong and an equivalent setting of its own is not, with the reason in
+    /// `feature`.
+    #[serde(default)]
+    pub mitsuba_integrator: Option<String>,
 }
 
 #[derive(Deserialize)]

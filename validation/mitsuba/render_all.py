@@ -65,6 +65,7 @@ def why_stale(scene, manifest, mitsuba_version):
         ("scene_sha256", entry.get("scene_sha256"), rr.file_sha256(scene_path)),
         ("defines", entry.get("defines"), {k: str(v) for k, v in scene.get("defines", {}).items()}),
         ("spp", entry.get("spp"), scene["reference_spp"]),
+        ("integrator", entry.get("integrator"), scene.get("mitsuba_integrator")),
         ("mitsuba_version", entry.get("mitsuba_version"), mitsuba_version),
     ]
     for name, have, want in checks:
@@ -107,6 +108,8 @@ def main(argv=None):
                "--spp", str(scene["reference_spp"]), "--variant", args.variant, "--quiet"]
         for k, v in scene.get("defines", {}).items():
             cmd += ["-D", f"{k}={v}"]
+        if "mitsuba_integrator" in scene:
+            cmd += ["--integrator", scene["mitsuba_integrator"]]
         print(f"{scene['name']}: rendering ({reason}): render_reference.py "
               + " ".join(os.path.relpath(c, REPO_ROOT) if os.path.isabs(c) else c for c in cmd),
               file=sys.stderr, flush=True)

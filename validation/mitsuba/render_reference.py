@@ -91,6 +91,9 @@ def parse_args(argv=None):
     p.add_argument("--seed-base", type=int, default=0, help="pass k uses seed seed_base + k")
     p.add_argument("-D", dest="defines", action="append", default=[], metavar="NAME=VALUE",
                    help="XML $NAME substitution (repeatable)")
+    p.add_argument("--integrator", default=None, metavar="JSON",
+                   help="render with this integrator (a mi.load_dict dictionary as JSON) "
+                        "instead of the scene's")
     p.add_argument("--manifest", default=os.path.join(SCRIPT_DIR, "manifest.json"),
                    help="JSON manifest to update (default: manifest.json next to this script)")
     p.add_argument("--no-manifest", action="store_true", help="do not update the manifest")
@@ -109,9 +112,10 @@ def pass_sizes(spp, pass_spp):
     return sizes
 
 
-def render_passes(mi, scene, variant, method, sizes, seed_base, quiet):
+def render_passes(mi, scene, variant, method, sizes, seed_base, quiet, integrator=None):
     """Render all passes; returns (mean[H,W,3], var[H,W,3], seconds)."""
-    integrator = scene.integrator()
+    if integrator is None:
+        integrator = scene.integrator()
     if method == "rgb-moment":
         integrator = mu.make_rgb_moment_integrator(mi, integrator)
     total = sum(sizes)
@@ -250,8 +254,12 @@ def main(argv=None):
 
     print(f"{args.scene}: {width}x{height}, {args.spp} spp in {len(sizes)} passes of "
           f"{args.pass_spp}, variant {variant}, variance {method}", file=sys.stderr)
+    integrator = None
+    if args.integrator is not None:
+        integrator = mi.load_dict(json.loads(args.integrator))
+        print(f"integrator replaced by {args.integrator}", file=sys.stderr)
     mean, var, seconds = render_passes(mi, scene, variant, method, sizes, args.seed_base,
-                                       args.quiet)
+                                       args.quiet, integrator)
     if method == "rgb-moment":
         # "passes" already measures spp x Var(pixel value) directly; the moments need K.
         var = var * factor
@@ -283,6 +291,7 @@ def main(argv=None):
         "render_seconds": round(seconds, 3),
         "date": datetime.datetime.now(datetime.timezone.utc).isoformat(timespec="seconds"),
         "defines": defines,
+        "integrator": args.integrator,
         "variance_method": method,
         "seed_base": args.seed_base,
         "image_mean": image_mean,

@@ -835,12 +835,12 @@ fn structure_errors() {
 fn errors_name_the_element_and_its_line() {
     let xml = "<scene version=\"3.0.0\">\n\
                \x20 <bsdf type=\"diffuse\">\n\
-               \x20   <spectrum name=\"reflectance\" value=\"0.5\"/>\n\
+               \x20   <color name=\"reflectance\" value=\"0.5\"/>\n\
                \x20 </bsdf>\n\
                </scene>\n";
     assert_eq!(
         error(xml),
-        "scene.xml:3:5: unknown property tag <spectrum name=\"reflectance\"> in <bsdf type=\"diffuse\">"
+        "scene.xml:3:5: unknown property tag <color name=\"reflectance\"> in <bsdf type=\"diffuse\">"
     );
     let xml = "<scene version=\"3.0.0\">\n\n\n<shape type=\"a\">\n<integer name=\"n\" value=\"x\"/></shape></scene>";
     let e = error(xml);
