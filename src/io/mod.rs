@@ -1,5 +1,6 @@
-//! Image input and output.
+//! File input and output: images, and the mesh data of the mesh file readers.
 pub mod exr;
+pub mod mesh;
 pub mod png;
 
 use std::io::Read;
