@@ -1,6 +1,7 @@
-//! File input and output: images, and the mesh data of the mesh file readers.
+//! File input and output: images, and the mesh formats Mitsuba reads (PLY).
 pub mod exr;
 pub mod mesh;
+pub mod ply;
 pub mod png;
 
 use std::io::Read;
