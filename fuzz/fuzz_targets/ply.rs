@@ -9,7 +9,8 @@ use penumbra::io::ply::read_ply_with_warnings;
 fuzz_target!(|data: &[u8]| {
     let mut warnings = Vec::new();
     if let Ok(mesh) = read_ply_with_warnings(data, &mut warnings) {
-        mesh.validate().expect("the reader returned an invalid mesh");
+        mesh.validate()
+            .expect("the reader returned an invalid mesh");
         assert!(mesh.positions.iter().flatten().all(|c| c.is_finite()));
     }
 });

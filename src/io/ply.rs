@@ -1130,6 +1130,7 @@ mod tests {
     }
 
     #[test]
+    #[allow(clippy::approx_constant)] // the file stores 0.707107, not 1/sqrt(2)
     fn sphere_attribute_binary_with_vertex_and_face_attributes() {
         let m = read_ply(&data("sphere_attribute.ply")).unwrap();
         assert_eq!((m.positions.len(), m.triangles.len()), (1192, 528));
@@ -1389,7 +1390,8 @@ mod tests {
     #[test]
     fn attribute_grouping_follows_mitsuba() {
         // Each case was loaded in Mitsuba 3.9.1; the expected names are what it created.
-        let cases: [(&[&str], &[(&str, usize)]); 10] = [
+        type Case<'a> = (&'a [&'a str], &'a [(&'a str, usize)]);
+        let cases: [Case; 10] = [
             (
                 &["float r", "float g", "float b", "float a"],
                 &[("vertex_color", 4)],
@@ -1586,11 +1588,11 @@ mod tests {
                 "end_header",
             ),
             (
-                text[..body_start - 5].as_bytes().to_vec(),
+                text.as_bytes()[..body_start - 5].to_vec(),
                 "invalid PLY header",
             ),
             (good[..good.len() - 3].to_vec(), "ends inside \"face\""),
-            (text[..body_start + 10].as_bytes().to_vec(), "too short"),
+            (text.as_bytes()[..body_start + 10].to_vec(), "too short"),
             (format!("{text}7\n").into_bytes(), "trailing"),
             (text.replacen("ply\n", "", 1).into_bytes(), "before \"ply\""),
             (
