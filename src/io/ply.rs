@@ -3,8 +3,8 @@
 //! Format: Greg Turk, "The PLY Polygon File Format" (1994), ASCII and binary little/big
 //! endian, version 1.0. Behaviour: Mitsuba 3.9.1 `src/shapes/ply.cpp` and `ply.h`, checked
 //! against the installed Mitsuba 3.9.1 (scalar_rgb) on hand-made files; where the two
-//! disagree, the running Mitsuba wins (noted below). `/work/mitsuba-src` is a later snapshot
-//! (PackedMesh, struct-jit rewrite) and differs in places (it rejects out-of-range indices).
+//! disagree, the running Mitsuba wins (noted below). Mitsuba's later development sources
+//! (b45b0a9, the PackedMesh rewrite) differ in places, e.g. they reject out-of-range indices.
 //!
 //! # What is read, as Mitsuba reads it
 //!

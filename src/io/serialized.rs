@@ -37,8 +37,9 @@
 //! - An index `>=` the vertex count is an error (Mitsuba 3.9.1 does not check).
 //! - Counts above `u32::MAX` are an error (Mitsuba truncates them to 32 bits), and so is a
 //!   shape name longer than 64 KiB.
-//! - `shape_index` must be below the count at the end of the file (Mitsuba lets
-//!   `shape_index == count` through and then reads garbage).
+//! - `shape_index` must be below the count at the end of the file (Mitsuba's check lets
+//!   `shape_index == count` through; it then fails reading version 4 and takes the count
+//!   for an offset in version 3).
 //! - Hostile input: never panics, no recursion. Nothing is allocated from a header count:
 //!   decompressed bytes are collected as they arrive, so memory is bounded by what the zlib
 //!   stream really holds (deflate expands at most ~1032:1), and a short stream is an error.
