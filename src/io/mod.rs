@@ -1,6 +1,9 @@
-//! Image input and output.
+//! File input and output: images, and the mesh formats Mitsuba reads.
 pub mod exr;
+pub mod mesh;
+pub mod ply;
 pub mod png;
+pub mod serialized;
 
 use std::io::Read;
 use std::path::Path;
