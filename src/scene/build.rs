@@ -489,9 +489,37 @@ fn shape_geometry(
             }
             Ok(ShapeGeometry::Cylinder(c))
         }
-        ShapeKind::Ply { .. }
-        | ShapeKind::Serialized { .. }
-        | ShapeKind::SdfGrid { .. } => Err(Error::scene(
+        ShapeKind::Ply {
+            filename,
+            face_normals,
+            flip_tex_coords,
+        } => {
+            let options = MeshOptions {
+                to_world: m,
+                face_normals: *face_normals,
+                flip_tex_coords: *flip_tex_coords,
+                flip_normals: sd.flip_normals,
+            };
+            load_mesh(filename, MeshFormat::Ply, &options, warnings).map(ShapeGeometry::Mesh)
+        }
+        ShapeKind::Serialized {
+            filename,
+            shape_index,
+            face_normals,
+        } => {
+            // Mitsuba's serialized meshes keep their texture coordinates as stored.
+            let options = MeshOptions {
+                to_world: m,
+                face_normals: *face_normals,
+                flip_tex_coords: false,
+                flip_normals: sd.flip_normals,
+            };
+            let format = MeshFormat::Serialized {
+                shape_index: *shape_index,
+            };
+            load_mesh(filename, format, &options, warnings).map(ShapeGeometry::Mesh)
+        }
+        ShapeKind::SdfGrid { .. } => Err(Error::scene(
             &sd.location,
             "this shape is not wired in yet",
         )),
@@ -512,6 +540,26 @@ fn shape_geometry(
     }
 }
 
+/// Which reader a mesh file goes through.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum MeshFormat {
+    /// Wavefront OBJ (tobj).
+    Obj,
+    /// Stanford PLY ([`crate::io::ply`]).
+    Ply,
+    /// Mitsuba's serialized format, one mesh of the file ([`crate::io::serialized`]).
+    Serialized { shape_index: u32 },
+}
+
+/// How a mesh file is placed in the scene (Mitsuba's common mesh parameters).
+#[derive(Clone, Copy, Debug)]
+pub struct MeshOptions {
+    pub to_world: DMat4,
+    pub face_normals: bool,
+    pub flip_tex_coords: bool,
+    pub flip_normals: bool,
+}
+
 /// Loads a Wavefront OBJ with tobj (triangulated, single index), transforms it to world
 /// space and drops faces with non-finite or coincident vertices (counted in a warning).
 pub fn load_obj(
@@ -522,6 +570,22 @@ pub fn load_obj(
     flip_normals: bool,
     warnings: &mut Vec<String>,
 ) -> Result<Mesh> {
+    let options = MeshOptions {
+        to_world,
+        face_normals,
+        flip_tex_coords,
+        flip_normals,
+    };
+    load_mesh(path, MeshFormat::Obj, &options, warnings)
+}
+
+/// Loads a mesh file of any supported format (see [`mesh_from_bytes`]).
+pub fn load_mesh(
+    path: &Path,
+    format: MeshFormat,
+    options: &MeshOptions,
+    warnings: &mut Vec<String>,
+) -> Result<Mesh> {
     let bytes =
         crate::io::read_file_limited(path, crate::io::MAX_MESH_FILE_BYTES).map_err(|cause| {
             Error::Io {
@@ -529,15 +593,7 @@ pub fn load_obj(
                 cause,
             }
         })?;
-    obj_from_bytes(
-        &bytes,
-        path,
-        to_world,
-        face_normals,
-        flip_tex_coords,
-        flip_normals,
-        warnings,
-    )
+    mesh_from_bytes(&bytes, path, format, options, warnings)
 }
 
 /// [`load_obj`] on the file's contents; `path` names it in messages.
@@ -550,73 +606,118 @@ pub fn obj_from_bytes(
     flip_normals: bool,
     warnings: &mut Vec<String>,
 ) -> Result<Mesh> {
+    let options = MeshOptions {
+        to_world,
+        face_normals,
+        flip_tex_coords,
+        flip_normals,
+    };
+    mesh_from_bytes(bytes, path, MeshFormat::Obj, &options, warnings)
+}
+
+/// Reads a mesh file's contents (`path` names it in messages) and builds the scene's mesh:
+/// positions transformed to world space, normals by the inverse transpose and normalised
+/// (as Mitsuba does), texture coordinates flipped vertically if asked (v → 1 − v), faces
+/// with non-finite or coincident vertices dropped (counted in a warning), and vertex normals
+/// computed (angle-weighted, as Mitsuba) when the file has none and `face_normals` is off.
+pub fn mesh_from_bytes(
+    bytes: &[u8],
+    path: &Path,
+    format: MeshFormat,
+    options: &MeshOptions,
+    warnings: &mut Vec<String>,
+) -> Result<Mesh> {
     let mesh_err = |message: String| Error::Mesh {
         path: path.to_path_buf(),
         message,
     };
+    let data = match format {
+        MeshFormat::Obj => obj_data(bytes).map_err(mesh_err)?,
+        MeshFormat::Ply => {
+            let mut w = Vec::new();
+            let data = crate::io::ply::read_ply_with_warnings(bytes, &mut w).map_err(mesh_err)?;
+            warnings.extend(w.into_iter().map(|m| format!("{}: {m}", path.display())));
+            data
+        }
+        MeshFormat::Serialized { shape_index } => {
+            crate::io::serialized::read_serialized(bytes, shape_index as usize)
+                .map_err(mesh_err)?
+        }
+    };
+    Ok(mesh_from_data(&data, path, options, warnings))
+}
+
+/// The vertices, normals, texture coordinates and faces of an OBJ file (tobj: triangulated,
+/// one index per vertex; every model of the file, in order).
+fn obj_data(bytes: &[u8]) -> std::result::Result<crate::io::mesh::MeshData, String> {
     let mut reader = std::io::BufReader::new(bytes);
     let (models, _) = tobj::load_obj_buf(&mut reader, &tobj::GPU_LOAD_OPTIONS, |_| {
         Err(tobj::LoadError::GenericFailure) // materials are not used: skip .mtl files
     })
-    .map_err(|e| mesh_err(e.to_string()))?;
-    let normal_matrix = DMat3::from_mat4(to_world).inverse().transpose();
-    let mut positions = Vec::new();
+    .map_err(|e| e.to_string())?;
+    let mut data = crate::io::mesh::MeshData::default();
     let mut normals = Vec::new();
     let mut uvs = Vec::new();
-    let mut triangles = Vec::new();
-    let mut all_have_normals = true;
-    let mut all_have_uvs = true;
-    let mut skipped = 0usize;
+    let (mut all_normals, mut all_uvs) = (true, true);
     for model in &models {
         let m = &model.mesh;
-        let base = positions.len();
+        let base = data.positions.len();
         let nv = m.positions.len() / 3;
-        all_have_normals &= m.normals.len() == nv * 3;
-        all_have_uvs &= m.texcoords.len() == nv * 2;
-        for v in 0..nv {
-            let p = DVec3::new(
-                m.positions[3 * v] as f64,
-                m.positions[3 * v + 1] as f64,
-                m.positions[3 * v + 2] as f64,
-            );
-            positions.push(to_world.transform_point3(p).as_vec3());
-            if let Some(n) = m.normals.get(3 * v..3 * v + 3) {
-                let n = DVec3::new(n[0] as f64, n[1] as f64, n[2] as f64);
-                normals.push((normal_matrix * n).normalize_or_zero().as_vec3());
-            }
-            if let Some(t) = m.texcoords.get(2 * v..2 * v + 2) {
-                uvs.push(Vec2::new(
-                    t[0],
-                    if flip_tex_coords { 1.0 - t[1] } else { t[1] },
-                ));
-            }
-        }
+        all_normals &= m.normals.len() == nv * 3;
+        all_uvs &= m.texcoords.len() == nv * 2;
+        data.positions
+            .extend(m.positions.chunks_exact(3).map(|p| [p[0], p[1], p[2]]));
+        normals.extend(m.normals.chunks_exact(3).map(|n| [n[0], n[1], n[2]]));
+        uvs.extend(m.texcoords.chunks_exact(2).map(|t| [t[0], t[1]]));
         for f in m.indices.chunks(3) {
             let [a, b, c] = match f {
                 [a, b, c] => [*a, *b, *c],
-                _ => {
-                    skipped += 1;
-                    continue;
-                }
+                _ => return Err("a face with fewer than three vertices".into()),
             };
             if [a, b, c].iter().any(|&i| i as usize >= nv) {
-                return Err(mesh_err(format!(
-                    "face index {} out of range",
-                    a.max(b).max(c)
-                )));
+                return Err(format!("face index {} out of range", a.max(b).max(c)));
             }
-            let idx = [a, b, c].map(|i| (base + i as usize) as u32);
-            let p = idx.map(|i| positions[i as usize]);
-            let finite = p.iter().all(|q| q.is_finite());
-            let area2 = (p[1] - p[0])
-                .as_dvec3()
-                .cross((p[2] - p[0]).as_dvec3())
-                .length();
-            if !(finite && area2 > 0.0 && area2.is_finite()) {
-                skipped += 1;
-                continue;
-            }
-            triangles.push(idx);
+            data.triangles
+                .push([a, b, c].map(|i| (base + i as usize) as u32));
+        }
+    }
+    let nv = data.positions.len();
+    data.normals = (all_normals && normals.len() == nv && nv > 0).then_some(normals);
+    data.uvs = (all_uvs && uvs.len() == nv && nv > 0).then_some(uvs);
+    Ok(data)
+}
+
+/// The scene's mesh from file data (see [`mesh_from_bytes`]).
+fn mesh_from_data(
+    data: &crate::io::mesh::MeshData,
+    path: &Path,
+    options: &MeshOptions,
+    warnings: &mut Vec<String>,
+) -> Mesh {
+    let to_world = options.to_world;
+    let normal_matrix = DMat3::from_mat4(to_world).inverse().transpose();
+    let positions: Vec<Vec3> = data
+        .positions
+        .iter()
+        .map(|p| {
+            to_world
+                .transform_point3(DVec3::new(p[0] as f64, p[1] as f64, p[2] as f64))
+                .as_vec3()
+        })
+        .collect();
+    let mut triangles = Vec::with_capacity(data.triangles.len());
+    let mut skipped = 0usize;
+    for idx in &data.triangles {
+        let p = idx.map(|i| positions[i as usize]);
+        let finite = p.iter().all(|q| q.is_finite());
+        let area2 = (p[1] - p[0])
+            .as_dvec3()
+            .cross((p[2] - p[0]).as_dvec3())
+            .length();
+        if finite && area2 > 0.0 && area2.is_finite() {
+            triangles.push(*idx);
+        } else {
+            skipped += 1;
         }
     }
     if skipped > 0 {
@@ -625,20 +726,40 @@ pub fn obj_from_bytes(
             path.display()
         ));
     }
-    let normals = if face_normals {
+    let normals = if options.face_normals {
         None
-    } else if all_have_normals && !normals.is_empty() {
-        Some(normals)
+    } else if let Some(n) = &data.normals {
+        Some(
+            n.iter()
+                .map(|n| {
+                    let n = DVec3::new(n[0] as f64, n[1] as f64, n[2] as f64);
+                    (normal_matrix * n).normalize_or_zero().as_vec3()
+                })
+                .collect(),
+        )
     } else {
         Some(angle_weighted_normals(&positions, &triangles))
     };
-    let uvs = (all_have_uvs && !uvs.is_empty()).then_some(uvs);
-    let mesh = Mesh::new(positions, normals, uvs, triangles, flip_normals);
+    let uvs = data.uvs.as_ref().map(|uvs| {
+        uvs.iter()
+            .map(|t| {
+                Vec2::new(
+                    t[0],
+                    if options.flip_tex_coords {
+                        1.0 - t[1]
+                    } else {
+                        t[1]
+                    },
+                )
+            })
+            .collect()
+    });
+    let mesh = Mesh::new(positions, normals, uvs, triangles, options.flip_normals);
     if mesh.triangles.is_empty() {
         warnings.push(format!(
             "{}: the mesh has no valid triangle",
             path.display()
         ));
     }
-    Ok(mesh)
+    mesh
 }
