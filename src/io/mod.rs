@@ -1,6 +1,7 @@
-//! Image input and output.
+//! Image input and output, and Mitsuba's `.vol` grid files.
 pub mod exr;
 pub mod png;
+pub mod vol;
 
 use std::io::Read;
 use std::path::Path;
