@@ -4,6 +4,7 @@
 
 pub mod disk;
 pub mod mesh;
+pub mod sdfgrid;
 pub mod sphere;
 
 pub use disk::Disk;
