@@ -771,6 +771,8 @@ mod tests {
 
     struct MitsubaCase {
         name: String,
+        /// The grid, relative to the repository.
+        file: String,
         normals: SdfNormals,
         to_world: DMat4,
         /// o, d, hit, t, p, n, sh_n, uv, dp_du
@@ -785,11 +787,13 @@ mod tests {
             match it.next() {
                 Some("case") => {
                     let name = it.next().unwrap().to_string();
+                    let file = it.next().unwrap().to_string();
                     let normals = SdfNormals::parse(it.next().unwrap()).unwrap();
                     let m: Vec<f64> = it.map(|x| x.parse().unwrap()).collect();
                     let to_world = DMat4::from_cols_slice(&m).transpose();
                     cases.push(MitsubaCase {
                         name,
+                        file,
                         normals,
                         to_world,
                         rays: Vec::new(),
@@ -814,21 +818,24 @@ mod tests {
         )
     }
 
-    /// Hits and misses, t, p and both normals against Mitsuba 3.9.1's own sdfgrid.
+    /// Hits and misses, t, p and both normals against Mitsuba 3.9.1's own sdfgrid, on the
+    /// torus (symmetric under x ↔ z) and an off-centre sphere (which is not), under several
+    /// `to_world` and both normal modes (validation/mitsuba/sdfgrid_hits.py).
     ///
     /// Tolerances. Mitsuba intersects in f32 and stops its regula falsi once the bracket is
     /// narrower than 1e-5 in t, so its t may be off by 1e-5 plus a few f32 roundings of t
     /// (we allow 64 ulp) and its p by that times |d| plus p's own rounding. Its normals are
-    /// f32 differences of interpolated samples of magnitude up to 23 (voxel units, gradient
-    /// ~1 per voxel): relative error ~1e-5, plus the curvature (~1/4 voxel⁻¹) times its p
-    /// error (<1e-3 voxel); 1e-4 covers both. Measured worst cases: 16% of the t tolerance,
-    /// 10% of the normal tolerance (printed with --nocapture).
+    /// f32 differences of interpolated samples (the torus's reach 23, in voxel units, with a
+    /// gradient of ~1 per voxel): relative error ~1e-5, plus the curvature (≤ 1/4 voxel⁻¹)
+    /// times its p error (< 1e-3 voxel); 1e-4 covers both. Measured worst cases: 19% of the
+    /// t tolerance, 9% of the normal tolerance (printed with --nocapture).
     #[test]
     fn agrees_with_mitsuba() {
         let cases = mitsuba_cases();
-        assert_eq!(cases.len(), 4);
+        assert_eq!(cases.len(), 6);
         for case in cases {
-            let g = torus(case.to_world, case.normals);
+            let data = read_vol(&repo(&case.file)).unwrap();
+            let g = SdfGrid::new(data, case.to_world, case.normals, false).unwrap();
             let voxel = (g.grid_to_world.transform_vector3(DVec3::ONE).min_element()) as f32;
             let (mut hits, mut worst_t, mut worst_n) = (0, 0.0f32, 0.0f32);
             for r in &case.rays {
@@ -884,7 +891,7 @@ mod tests {
                 assert!(si.p_error.max_element() < 1e-3 * voxel);
             }
             println!("{}: {hits} hits of {} rays, worst |dt|/tol {worst_t:.3}, worst |dn|/tol {worst_n:.3}", case.name, case.rays.len());
-            assert!(hits > 100, "{}: only {hits} hits", case.name);
+            assert!(hits > 80, "{}: only {hits} hits", case.name);
         }
     }
 
