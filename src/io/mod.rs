@@ -1,9 +1,11 @@
-//! File input and output: images, and the mesh formats Mitsuba reads.
+//! File input and output: images, the mesh formats Mitsuba reads (PLY, serialized; OBJ goes
+//! through tobj) and Mitsuba's `.vol` grid files.
 pub mod exr;
 pub mod mesh;
 pub mod ply;
 pub mod png;
 pub mod serialized;
+pub mod vol;
 
 use std::io::Read;
 use std::path::Path;

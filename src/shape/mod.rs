@@ -6,6 +6,7 @@
 pub mod cylinder;
 pub mod disk;
 pub mod mesh;
+pub mod sdfgrid;
 pub mod sphere;
 
 pub use cylinder::Cylinder;
