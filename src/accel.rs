@@ -109,7 +109,12 @@ fn triangle_vertices(shapes: &[Shape], shape: u32, index: u32) -> [Vec3; 3] {
 }
 
 /// The padded bounds of one primitive.
-fn primitive_bounds(prim: &Primitive, shapes: &[Shape], instances: &[Instance], groups: &[Group]) -> Aabb {
+fn primitive_bounds(
+    prim: &Primitive,
+    shapes: &[Shape],
+    instances: &[Instance],
+    groups: &[Group],
+) -> Aabb {
     match *prim {
         Primitive::Triangle { shape, index } => padded(triangle_vertices(shapes, shape, index)),
         Primitive::Analytic { shape } => match shapes[shape as usize].geometry.bounds() {
@@ -285,9 +290,7 @@ impl Accel {
             }
         }
         for i in 0..instances.len() {
-            prims.push(Primitive::Instance {
-                instance: i as u32,
-            });
+            prims.push(Primitive::Instance { instance: i as u32 });
         }
         let mut accel = Accel {
             nodes: Vec::new(),
@@ -304,7 +307,14 @@ impl Accel {
         }
         let bounded: Vec<Bounded> = prims
             .iter()
-            .map(|prim| Bounded(primitive_bounds(prim, shapes, &accel.instances, &accel.groups)))
+            .map(|prim| {
+                Bounded(primitive_bounds(
+                    prim,
+                    shapes,
+                    &accel.instances,
+                    &accel.groups,
+                ))
+            })
             .collect();
         let mut all = Aabb::empty();
         for b in &bounded {
@@ -649,11 +659,9 @@ impl Accel {
                 }
                 _ => unreachable!("triangle primitive of a non-mesh shape"),
             },
-            Primitive::Analytic { shape } => {
-                shapes[shape as usize]
-                    .geometry
-                    .interaction(ray, hit.t, shape)
-            }
+            Primitive::Analytic { shape } => shapes[shape as usize]
+                .geometry
+                .interaction(ray, hit.t, shape),
             Primitive::Instance { .. } => unreachable!("instance hits carry their instance"),
         }
     }

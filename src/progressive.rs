@@ -192,14 +192,12 @@ pub fn fnv1a(bytes: &[u8], mut h: u64) -> u64 {
 }
 
 /// Identity of a scene for checkpoints: its typed description (every parameter, after
-/// defaults and -D overrides) and the bytes of every mesh file it loads.
+/// defaults and -D overrides) and the bytes of every file it loads (meshes, grids, images).
 pub fn scene_hash(desc: &crate::scene::description::SceneDescription) -> u64 {
     let mut h = fnv1a(format!("{desc:?}").as_bytes(), 0xcbf2_9ce4_8422_2325);
-    for s in &desc.shapes {
-        if let crate::scene::description::ShapeKind::Obj { filename, .. } = &s.kind {
-            if let Ok(bytes) = std::fs::read(filename) {
-                h = fnv1a(&bytes, h);
-            }
+    for path in desc.files() {
+        if let Ok(bytes) = std::fs::read(path) {
+            h = fnv1a(&bytes, h);
         }
     }
     h

@@ -12,7 +12,7 @@ fuzz_target!(|data: &[u8]| {
     let Ok(text) = std::str::from_utf8(data) else {
         return;
     };
-    let Ok(scene) = Scene::from_xml_str(text, Path::new("/tmp/penumbra-fuzz/scene.xml"), &[])
+    let Ok(scene) = Scene::from_xml_str(text, Path::new("fuzz/scene.xml"), &[])
     else {
         return;
     };

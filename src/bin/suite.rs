@@ -28,10 +28,11 @@ fn main() -> anyhow::Result<()> {
     println!("| scene | result | pixel-channels passing | mean diff R / G / B | spp | time (s) |");
     println!("|---|---|---:|---|---:|---:|");
     let (mut passed, mut failed, mut unsupported) = (0, 0, 0);
-    for s in scenes
-        .iter()
-        .filter(|s| args.scene.as_ref().is_none_or(|f| s.name.contains(f.as_str())))
-    {
+    for s in scenes.iter().filter(|s| {
+        args.scene
+            .as_ref()
+            .is_none_or(|f| s.name.contains(f.as_str()))
+    }) {
         match suite::run(s, args.threads) {
             Outcome::Judged(j) => {
                 if j.passed {
@@ -58,7 +59,11 @@ fn main() -> anyhow::Result<()> {
                     .rsplit_once(".xml:")
                     .map(|(_, rest)| format!("line {rest}"))
                     .unwrap_or(e);
-                println!("| {} | unsupported | | {} | | |", s.name, short.replace('|', "\\|"));
+                println!(
+                    "| {} | unsupported | | {} | | |",
+                    s.name,
+                    short.replace('|', "\\|")
+                );
             }
         }
     }

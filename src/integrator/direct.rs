@@ -90,7 +90,10 @@ impl DirectIntegrator {
                     let w = if e.delta {
                         1.0
                     } else {
-                        mis_power(e.emitter_pdf * self.frac_emitter, e.bsdf_pdf * self.frac_bsdf)
+                        mis_power(
+                            e.emitter_pdf * self.frac_emitter,
+                            e.bsdf_pdf * self.frac_bsdf,
+                        )
                     };
                     result += e.value * (w * inv_n);
                 }

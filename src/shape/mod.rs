@@ -1,5 +1,5 @@
 //! Shapes: triangle meshes (rectangle, cube, OBJ, PLY and serialized files become meshes),
-//! analytic spheres, disks and cylinders, all in world space (or a shape group's space). Each
+//! analytic spheres, disks and cylinders, Mitsuba's SDF grids, all in world space (or a shape group's space). Each
 //! shape samples points uniformly by area (for area lights) and turns a ray hit into a
 //! [`SurfaceInteraction`] with Mitsuba's (u, v) parameterisation and dp/du.
 
@@ -12,6 +12,7 @@ pub mod sphere;
 pub use cylinder::Cylinder;
 pub use disk::Disk;
 pub use mesh::Mesh;
+pub use sdfgrid::SdfGrid;
 pub use sphere::Sphere;
 
 use crate::geometry::{Frame, Ray};
@@ -61,6 +62,7 @@ pub enum ShapeGeometry {
     Sphere(Sphere),
     Disk(Disk),
     Cylinder(Cylinder),
+    SdfGrid(Box<SdfGrid>),
 }
 
 impl ShapeGeometry {
@@ -71,6 +73,8 @@ impl ShapeGeometry {
             ShapeGeometry::Sphere(s) => s.area(),
             ShapeGeometry::Disk(d) => d.area(),
             ShapeGeometry::Cylinder(c) => c.area(),
+            // Mitsuba gives the SDF grid no area (it cannot be sampled as an emitter).
+            ShapeGeometry::SdfGrid(_) => 0.0,
         }
     }
 
@@ -81,6 +85,7 @@ impl ShapeGeometry {
             ShapeGeometry::Sphere(s) => Some(s.sample_position(u)),
             ShapeGeometry::Disk(d) => Some(d.sample_position(u)),
             ShapeGeometry::Cylinder(c) => Some(c.sample_position(u)),
+            ShapeGeometry::SdfGrid(_) => None,
         }
     }
 
@@ -103,6 +108,10 @@ impl ShapeGeometry {
                 let [lo, hi] = c.bounds();
                 Some((lo, hi))
             }
+            ShapeGeometry::SdfGrid(g) => {
+                let [lo, hi] = g.bounds();
+                Some((lo, hi))
+            }
         }
     }
 
@@ -114,6 +123,7 @@ impl ShapeGeometry {
             ShapeGeometry::Sphere(s) => s.intersect(ray),
             ShapeGeometry::Disk(d) => d.intersect(ray),
             ShapeGeometry::Cylinder(c) => c.intersect(ray),
+            ShapeGeometry::SdfGrid(g) => g.intersect(ray),
         }
     }
 
@@ -125,6 +135,7 @@ impl ShapeGeometry {
             ShapeGeometry::Sphere(s) => s.interaction(ray, t, shape),
             ShapeGeometry::Disk(d) => d.interaction(ray, t, shape),
             ShapeGeometry::Cylinder(c) => c.interaction(ray, t, shape),
+            ShapeGeometry::SdfGrid(g) => g.interaction(ray, t, shape),
         }
     }
 }

@@ -749,6 +749,10 @@ impl SdfGrid {
             ng,
             frame: Frame::from_normal(ns),
             uv: Vec2::ZERO,
+            // Mitsuba's sdfgrid has no parameterisation: uv and dp/du are zero, and the
+            // shading frame's tangent is the arbitrary one of `Frame::from_normal`.
+            dp_du: Vec3::ZERO,
+            dp_dv: Vec3::ZERO,
             shape,
         }
     }

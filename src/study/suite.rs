@@ -121,7 +121,12 @@ fn srgb_to_xyz(c: [f32; 3]) -> [f64; 3] {
 
 /// Mitsuba's acceptance rule for a render at `spp` against a reference and its per-sample
 /// variance (all linear sRGB, same size): (share of pixel-channels passing, accepted).
-pub fn z_test(render: &[[f32; 3]], reference: &[[f32; 3]], variance: &[[f32; 3]], spp: u32) -> (f64, bool) {
+pub fn z_test(
+    render: &[[f32; 3]],
+    reference: &[[f32; 3]],
+    variance: &[[f32; 3]],
+    spp: u32,
+) -> (f64, bool) {
     let pixels = reference.len();
     let alpha = sidak(SIGNIFICANCE, pixels);
     let mut passing = 0usize;

@@ -3,7 +3,7 @@
 every kind of shape, for tests/mitsuba_files.rs (anisotropic BSDFs follow the shading frame's
 tangent, which Mitsuba takes from dp/du).
 
-    /work/venv/bin/python validation/mitsuba/frames.py > tests/data/mitsuba_frames.txt
+    .venv/bin/python validation/mitsuba/frames.py > tests/data/mitsuba_frames.txt
 
 The scene is tests/data/frames.xml (read by both); rays start at the origin, where its sensor
 sits, so penumbra's camera-relative coordinates equal the world's.

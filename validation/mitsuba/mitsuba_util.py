@@ -12,7 +12,7 @@ import struct
 import sys
 
 # Dr.Jit reads this when the LLVM backend is first initialised. libLLVM 15 from Debian crashes
-# in Dr.Jit's code generation; 19 works (see /work/shared/notes/mitsuba-conventions.md).
+# in Dr.Jit's code generation; 19 works (see the README, "Mitsuba on this machine").
 DEFAULT_LIBLLVM = "/usr/lib/x86_64-linux-gnu/libLLVM.so.19.1"
 
 VARIANT_CHOICES = ("auto", "llvm_ad_rgb", "scalar_rgb")

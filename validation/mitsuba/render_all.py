@@ -2,7 +2,7 @@
 """Render the Mitsuba 3 reference of every landed scene in validation/scenes.toml.
 
 Usage:
-    /work/venv/bin/python validation/mitsuba/render_all.py [--force] [--scene NAME ...]
+    .venv/bin/python validation/mitsuba/render_all.py [--force] [--scene NAME ...]
         [--dry-run] [--variant auto|llvm_ad_rgb|scalar_rgb]
 
 For each scene with ``status = "landed"`` (or each ``--scene``, landed or not), this runs

@@ -5,6 +5,8 @@
 set -e
 bin=${1:-target/release/penumbra}
 scene=${2:-scenes/cornell-box.xml}
-valgrind --tool=callgrind --callgrind-out-file=/tmp/penumbra-callgrind.out \
-    "$bin" render "$scene" -D res=32 --spp 8 --threads 1 -o /tmp/penumbra-callgrind.exr 2>&1 |
+tmp=$(mktemp -d)
+trap 'rm -rf "$tmp"' EXIT
+valgrind --tool=callgrind --callgrind-out-file="$tmp/callgrind.out" \
+    "$bin" render "$scene" -D res=32 --spp 8 --threads 1 -o "$tmp/render.exr" 2>&1 |
     sed -n 's/.*Collected : \([0-9]*\).*/\1 instructions (32x32, 8 spp, 1 thread)/p'

@@ -14,7 +14,7 @@ with distinct seeds.
 
 Usage:
     cargo build --release
-    /work/venv/bin/python validation/perf/side_by_side.py [--spp 64] [--repeat 3]
+    .venv/bin/python validation/perf/side_by_side.py [--spp 64] [--repeat 3]
         [--scene NAME ...] [--variants llvm_ad_rgb,scalar_rgb] [--threads N] [--out FILE.md]
 """
 

@@ -91,7 +91,9 @@ pub(super) fn bsdf_desc(cx: &Ctx, o: &Arc<Object>) -> Result<BsdfDesc> {
         "diffuse" => {
             no_children(o)?;
             let mut p = Props::new(o);
-            let reflectance = p.color("reflectance", ColorRole::Reflectance)?.unwrap_or(DVec3::splat(0.5));
+            let reflectance = p
+                .color("reflectance", ColorRole::Reflectance)?
+                .unwrap_or(DVec3::splat(0.5));
             cx.finish(p)?;
             Ok(BsdfDesc::Diffuse { reflectance })
         }
@@ -132,7 +134,9 @@ pub(super) fn bsdf_desc(cx: &Ctx, o: &Arc<Object>) -> Result<BsdfDesc> {
                 None
             };
             let (eta, k) = conductor_ior(&mut p, o)?;
-            let specular_reflectance = p.color("specular_reflectance", ColorRole::Reflectance)?.unwrap_or(DVec3::ONE);
+            let specular_reflectance = p
+                .color("specular_reflectance", ColorRole::Reflectance)?
+                .unwrap_or(DVec3::ONE);
             cx.finish(p)?;
             Ok(match distribution {
                 None => BsdfDesc::Conductor {
@@ -158,8 +162,12 @@ pub(super) fn bsdf_desc(cx: &Ctx, o: &Arc<Object>) -> Result<BsdfDesc> {
             };
             let int_ior = ior(&mut p, o, "int_ior", "bk7")?;
             let ext_ior = ior(&mut p, o, "ext_ior", "air")?;
-            let specular_reflectance = p.color("specular_reflectance", ColorRole::Reflectance)?.unwrap_or(DVec3::ONE);
-            let specular_transmittance = p.color("specular_transmittance", ColorRole::Reflectance)?.unwrap_or(DVec3::ONE);
+            let specular_reflectance = p
+                .color("specular_reflectance", ColorRole::Reflectance)?
+                .unwrap_or(DVec3::ONE);
+            let specular_transmittance = p
+                .color("specular_transmittance", ColorRole::Reflectance)?
+                .unwrap_or(DVec3::ONE);
             cx.finish(p)?;
             Ok(match (o.plugin.as_str(), distribution) {
                 ("roughdielectric", Some(distribution)) => BsdfDesc::RoughDielectric {
@@ -194,8 +202,12 @@ pub(super) fn bsdf_desc(cx: &Ctx, o: &Arc<Object>) -> Result<BsdfDesc> {
             };
             let int_ior = ior(&mut p, o, "int_ior", "polypropylene")?;
             let ext_ior = ior(&mut p, o, "ext_ior", "air")?;
-            let diffuse_reflectance = p.color("diffuse_reflectance", ColorRole::Reflectance)?.unwrap_or(DVec3::splat(0.5));
-            let specular_reflectance = p.color("specular_reflectance", ColorRole::Reflectance)?.unwrap_or(DVec3::ONE);
+            let diffuse_reflectance = p
+                .color("diffuse_reflectance", ColorRole::Reflectance)?
+                .unwrap_or(DVec3::splat(0.5));
+            let specular_reflectance = p
+                .color("specular_reflectance", ColorRole::Reflectance)?
+                .unwrap_or(DVec3::ONE);
             let nonlinear = p.boolean("nonlinear", false)?;
             cx.finish(p)?;
             Ok(match distribution {
@@ -302,7 +314,11 @@ pub(super) fn conductor_ior(p: &mut Props, o: &Object) -> Result<(DVec3, DVec3)>
 /// `alpha` (default 0.1) or, when `anisotropic` is allowed, both `alpha_u` and `alpha_v`;
 /// `sample_visible` (default true). Roughness must be finite and >= 0 (Mitsuba accepts
 /// negative values without meaning; penumbra refuses them).
-pub(super) fn microfacet_desc(p: &mut Props, o: &Object, anisotropic: bool) -> Result<MicrofacetDesc> {
+pub(super) fn microfacet_desc(
+    p: &mut Props,
+    o: &Object,
+    anisotropic: bool,
+) -> Result<MicrofacetDesc> {
     let kind = match p.string("distribution")? {
         None => MicrofacetKind::Beckmann,
         Some(("beckmann", _)) => MicrofacetKind::Beckmann,

@@ -67,7 +67,9 @@ pub(super) fn scene_emitter_desc(cx: &Ctx, o: &Object) -> Result<EmitterDesc> {
         "point" => {
             let to_world = p.transform("to_world")?;
             let position = p.point("position", to_world.transform_point3(DVec3::ZERO))?;
-            let intensity = p.color("intensity", ColorRole::Emission)?.unwrap_or(DVec3::ONE);
+            let intensity = p
+                .color("intensity", ColorRole::Emission)?
+                .unwrap_or(DVec3::ONE);
             EmitterDesc::Point {
                 position,
                 intensity: non_negative(intensity, "intensity")?,
@@ -75,7 +77,9 @@ pub(super) fn scene_emitter_desc(cx: &Ctx, o: &Object) -> Result<EmitterDesc> {
         }
         "spot" => {
             let to_world = p.transform("to_world")?;
-            let intensity = p.color("intensity", ColorRole::Emission)?.unwrap_or(DVec3::ONE);
+            let intensity = p
+                .color("intensity", ColorRole::Emission)?
+                .unwrap_or(DVec3::ONE);
             let cutoff_angle = p.float("cutoff_angle", 20.0)?;
             let beam_width = p.float("beam_width", cutoff_angle * 0.75)?;
             if !(cutoff_angle > 0.0 && cutoff_angle <= 180.0) {
@@ -100,7 +104,9 @@ pub(super) fn scene_emitter_desc(cx: &Ctx, o: &Object) -> Result<EmitterDesc> {
         "directional" => {
             let to_world = p.transform("to_world")?;
             let direction = p.point("direction", to_world.transform_vector3(DVec3::Z))?;
-            let irradiance = p.color("irradiance", ColorRole::Emission)?.unwrap_or(DVec3::ONE);
+            let irradiance = p
+                .color("irradiance", ColorRole::Emission)?
+                .unwrap_or(DVec3::ONE);
             let direction = direction.try_normalize().ok_or_else(|| {
                 Error::scene(
                     &o.location,
@@ -113,7 +119,9 @@ pub(super) fn scene_emitter_desc(cx: &Ctx, o: &Object) -> Result<EmitterDesc> {
             }
         }
         "constant" => {
-            let radiance = p.color("radiance", ColorRole::Emission)?.unwrap_or(DVec3::ONE);
+            let radiance = p
+                .color("radiance", ColorRole::Emission)?
+                .unwrap_or(DVec3::ONE);
             EmitterDesc::Constant {
                 radiance: non_negative(radiance, "radiance")?,
             }

@@ -47,6 +47,31 @@ pub struct SceneDescription {
     pub warnings: Vec<String>,
 }
 
+impl SceneDescription {
+    /// Every file the scene reads when it is built (meshes, grids, environment maps), in
+    /// description order; shape groups' files once each.
+    pub fn files(&self) -> Vec<&Path> {
+        let shapes = self
+            .shapes
+            .iter()
+            .chain(self.shape_groups.iter().flat_map(|g| g.shapes.iter()));
+        let mut files: Vec<&Path> = shapes
+            .filter_map(|s| match &s.kind {
+                ShapeKind::Obj { filename, .. }
+                | ShapeKind::Ply { filename, .. }
+                | ShapeKind::Serialized { filename, .. }
+                | ShapeKind::SdfGrid { filename, .. } => Some(filename.as_path()),
+                _ => None,
+            })
+            .collect();
+        files.extend(self.emitters.iter().filter_map(|e| match e {
+            EmitterDesc::EnvMap { filename, .. } => Some(filename.as_path()),
+            _ => None,
+        }));
+        files
+    }
+}
+
 /// Largest image side accepted; larger ones are refused before allocating anything.
 pub const MAX_RESOLUTION: u32 = 1 << 16;
 /// Largest pixel count accepted (8192², whose f64 film takes 3.8 GB).
@@ -86,7 +111,13 @@ impl<'a> Props<'a> {
         Some((&p.value, &p.location))
     }
 
-    pub(super) fn wrong_type(&self, name: &str, v: &Value, loc: &Location, expected: &str) -> Error {
+    pub(super) fn wrong_type(
+        &self,
+        name: &str,
+        v: &Value,
+        loc: &Location,
+        expected: &str,
+    ) -> Error {
         Error::scene(
             loc,
             format!(
@@ -275,7 +306,6 @@ pub(super) fn positive(value: f64, what: &str, o: &Object) -> Result<f64> {
     }
 }
 
-
 /// Converts a parsed scene file ([`super::xml::Document`]) into a typed description.
 pub fn from_xml(doc: &Document) -> Result<SceneDescription> {
     let root = &doc.root;
@@ -352,11 +382,7 @@ pub fn from_xml(doc: &Document) -> Result<SceneDescription> {
     }
     for e in &scene_area_emitters {
         let used = root.children.iter().any(|c| {
-            c.object.tag == "shape"
-                && c.object
-                    .children
-                    .iter()
-                    .any(|s| Arc::ptr_eq(&s.object, e))
+            c.object.tag == "shape" && c.object.children.iter().any(|s| Arc::ptr_eq(&s.object, e))
         });
         if !used {
             cx.warn(format!(

@@ -70,7 +70,10 @@ fn focal_length_fov(p: &mut Props, o: &Object) -> Result<f64> {
 }
 
 pub(super) fn sensor_desc(o: &Object) -> Result<SensorDesc> {
-    if !matches!(o.plugin.as_str(), "perspective" | "thinlens" | "orthographic") {
+    if !matches!(
+        o.plugin.as_str(),
+        "perspective" | "thinlens" | "orthographic"
+    ) {
         return Err(unsupported_plugin(o));
     }
     let orthographic = o.plugin == "orthographic";

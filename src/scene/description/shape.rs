@@ -89,7 +89,10 @@ pub(super) fn shape_desc(cx: &Ctx, o: &Arc<Object>) -> Result<ShapeDesc> {
             if !(p0.is_finite() && p1.is_finite()) || p0 == p1 {
                 return Err(Error::scene(
                     &o.location,
-                    format!("p0 and p1 of {} must be distinct finite points", describe(o)),
+                    format!(
+                        "p0 and p1 of {} must be distinct finite points",
+                        describe(o)
+                    ),
                 ));
             }
             ShapeKind::Cylinder { p0, p1, radius }

@@ -256,7 +256,10 @@ enum RawChild {
 enum IdTarget {
     Object(usize),
     /// `<alias id="of" as="...">`: resolved after parsing, like references.
-    Alias { of: String, desc: String },
+    Alias {
+        of: String,
+        desc: String,
+    },
 }
 
 struct IdDecl {
@@ -1057,9 +1060,7 @@ impl Loader {
             .filter(|(_, d)| matches!(d.target, IdTarget::Alias { .. }))
             .map(|(id, d)| (&d.location, id))
             .collect();
-        aliases.sort_by(|a, b| {
-            (&a.0.file, a.0.line, a.0.col).cmp(&(&b.0.file, b.0.line, b.0.col))
-        });
+        aliases.sort_by(|a, b| (&a.0.file, a.0.line, a.0.col).cmp(&(&b.0.file, b.0.line, b.0.col)));
         for (location, id) in aliases {
             self.lookup(id, location, "<alias>")?;
         }

@@ -232,7 +232,9 @@ fn substitutes_defaults_and_overrides() {
         ("res".to_string(), "128".to_string()),
         ("kind".to_string(), "independent".to_string()),
     ];
-    let root = load_str(&xml, Path::new("scene.xml"), &overrides).unwrap().root;
+    let root = load_str(&xml, Path::new("scene.xml"), &overrides)
+        .unwrap()
+        .root;
     let sampler = first(&root);
     // The last override of a name wins; overrides beat defaults; the first default wins.
     assert_eq!(sampler.plugin, "independent");
@@ -339,7 +341,10 @@ fn ref_errors() {
     let e = error(&scene(
         r#"<alias id="a" as="b"/><alias id="b" as="a"/><shape type="s"><ref id="a"/></shape>"#,
     ));
-    assert!(e.contains("duplicate id") || e.contains("cycle of aliases"), "{e}");
+    assert!(
+        e.contains("duplicate id") || e.contains("cycle of aliases"),
+        "{e}"
+    );
 }
 
 /// Mitsuba resolves references after parsing: a reference may name an object declared later
@@ -355,9 +360,15 @@ fn forward_refs_resolve_to_the_later_object() {
     ))
     .unwrap();
     let shape = &root.children[0].object;
-    assert!(Arc::ptr_eq(&shape.children[0].object, &root.children[1].object));
+    assert!(Arc::ptr_eq(
+        &shape.children[0].object,
+        &root.children[1].object
+    ));
     assert_eq!(shape.children[0].name.as_deref(), Some("bsdf"));
-    assert!(Arc::ptr_eq(&shape.children[1].object, &root.children[2].object));
+    assert!(Arc::ptr_eq(
+        &shape.children[1].object,
+        &root.children[2].object
+    ));
     assert_eq!(shape.children[1].object.plugin, "area");
 }
 
@@ -368,7 +379,10 @@ fn long_reference_chains_fail_cleanly() {
     let n = 5000;
     let mut body = String::new();
     for i in 0..n {
-        body.push_str(&format!(r#"<bsdf type="b" id="b{i}"><ref id="b{}"/></bsdf>"#, i + 1));
+        body.push_str(&format!(
+            r#"<bsdf type="b" id="b{i}"><ref id="b{}"/></bsdf>"#,
+            i + 1
+        ));
     }
     body.push_str(&format!(r#"<bsdf type="b" id="b{n}"/>"#));
     let e = error(&scene(&body));
@@ -421,7 +435,10 @@ fn path_elements_feed_the_file_resolver() {
     let dir = TempDir::new("path");
     dir.write("common/meshes/m.obj", "v 0 0 0");
     dir.write("other/meshes/m.obj", "v 0 0 0");
-    dir.write("common/frag.xml", r#"<scene version="3.0.0"><bsdf type="x" id="f"/></scene>"#);
+    dir.write(
+        "common/frag.xml",
+        r#"<scene version="3.0.0"><bsdf type="x" id="f"/></scene>"#,
+    );
     dir.write(
         "scenes/inc/inner.xml",
         r#"<scene version="3.0.0"><path value="../../other"/><bsdf type="y" id="g"/></scene>"#,
@@ -449,7 +466,10 @@ fn path_elements_feed_the_file_resolver() {
     let bad = dir.write("scenes/bad.xml", scene(r#"<path value="nowhere"/>"#));
     let e = load_file(&bad, &[]).unwrap_err().to_string();
     assert!(e.contains("folder") && e.contains("not found"), "{e}");
-    assert!(e.contains("bad.xml:1:") && e.contains("scenes/nowhere"), "{e}");
+    assert!(
+        e.contains("bad.xml:1:") && e.contains("scenes/nowhere"),
+        "{e}"
+    );
     let nested = dir.write(
         "scenes/nested.xml",
         scene(r#"<shape type="a"><path value="../common"/></shape>"#),
