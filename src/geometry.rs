@@ -79,6 +79,20 @@ pub fn offset_ray_origin(p: Vec3, p_error: Vec3, n: Vec3, w: Vec3) -> Vec3 {
     po
 }
 
+/// Mitsuba's `coordinate_system` in f64: two unit vectors completing the unit vector `n` to a
+/// right-handed orthonormal basis (s, t, n), by the branchless construction of Duff et al.
+/// 2017, "Building an Orthonormal Basis, Revisited" (JCGT 6(1)); [`Frame::from_normal`] is
+/// the same in f32.
+pub fn coordinate_system(n: glam::DVec3) -> (glam::DVec3, glam::DVec3) {
+    let sign = 1.0f64.copysign(n.z);
+    let a = -1.0 / (sign + n.z);
+    let b = n.x * n.y * a;
+    (
+        glam::DVec3::new(1.0 + sign * n.x * n.x * a, sign * b, -sign * n.x),
+        glam::DVec3::new(b, sign + n.y * n.y * a, -n.y),
+    )
+}
+
 /// An orthonormal frame whose `n` axis is the local z axis (Mitsuba's `Frame3f`).
 #[derive(Clone, Copy, Debug)]
 pub struct Frame {

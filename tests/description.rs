@@ -1753,3 +1753,245 @@ fn thinlens_sensor_parameters() {
     assert!(e.contains("aperture_radius"), "{e}");
     assert_eq!(desc(&with_sensor("")).sensor.thin_lens, None);
 }
+
+// ---------------------------------------------------------------------------------------
+// Mitsuba's file semantics added with its example scenes: spectra by role, black BSDFs on
+// lights, direct and moment integrators, default sensors, shape groups.
+// ---------------------------------------------------------------------------------------
+
+/// [`desc`] of a scene with [`SENSOR`] and `body`.
+fn desc_body(body: &str) -> SceneDescription {
+    desc(&with_sensor(body))
+}
+
+/// [`error`] of a scene with [`SENSOR`] and `body`.
+fn error_body(body: &str) -> String {
+    error(&with_sensor(body))
+}
+
+fn close(a: DVec3, b: DVec3, tol: f64) -> bool {
+    (a - b).abs().max_element() <= tol
+}
+
+/// A `<spectrum>` becomes RGB by the role of the parameter that reads it: reflectances are
+/// D65-weighted and clamped, conductor IORs unbounded, emission not D65-weighted, and a
+/// uniform spectrum on an emitter is not grey (Mitsuba's RGB variants imitate the spectral
+/// ones). The values are Mitsuba's (tests/data/mitsuba_spectrum_values.txt).
+#[test]
+fn spectra_take_the_role_of_their_parameter() {
+    let d = desc_body(
+        r#"<shape type="sphere">
+             <bsdf type="conductor">
+               <spectrum name="eta" value="0.789"/>
+               <spectrum name="k" value="400:1, 700:7"/>
+             </bsdf>
+             <emitter type="area"><spectrum name="radiance" value="0.5"/></emitter>
+           </shape>
+           <shape type="sphere">
+             <bsdf type="diffuse"><spectrum name="reflectance" value="400:2, 700:2"/></bsdf>
+           </shape>"#,
+    );
+    match &d.shapes[0].bsdf {
+        BsdfDesc::Conductor { eta, k, .. } => {
+            assert!(close(*eta, DVec3::splat(0.789), 1e-7), "{eta}");
+            assert!(k.z < k.x && k.x > 1.0, "unbounded, not clamped: {k}");
+        }
+        other => panic!("{other:?}"),
+    }
+    match &d.shapes[0].emitter {
+        Some(EmitterDesc::Area { radiance }) => {
+            // 0.5 · xyz_to_srgb(1, 1, 1), the f32 values Mitsuba stores.
+            assert!(
+                close(
+                    *radiance,
+                    DVec3::new(0.602396965, 0.474145502, 0.454458028),
+                    1e-7
+                ),
+                "{radiance}"
+            );
+        }
+        other => panic!("{other:?}"),
+    }
+    match &d.shapes[1].bsdf {
+        BsdfDesc::Diffuse { reflectance } => {
+            assert!(
+                close(*reflectance, DVec3::ONE, 0.0),
+                "clamped to 1: {reflectance}"
+            )
+        }
+        other => panic!("{other:?}"),
+    }
+    assert!(
+        d.warnings.iter().any(|w| w.contains("clamping")),
+        "{:?}",
+        d.warnings
+    );
+    // <rgb> reflectances outside [0, 1] are refused, as Mitsuba's srgb texture does; the
+    // same on an emitter is fine.
+    let e = error_body(
+        r#"<shape type="sphere"><bsdf type="diffuse"><rgb name="reflectance" value="1.5, 0.2, 0.2"/></bsdf></shape>"#,
+    );
+    assert!(
+        e.contains("invalid RGB reflectance") && e.contains("scene.xml:10:"),
+        "{e}"
+    );
+    desc_body(
+        r#"<shape type="sphere"><emitter type="area"><rgb name="radiance" value="15"/></emitter></shape>"#,
+    );
+    let e = error_body(
+        r#"<shape type="sphere"><bsdf type="diffuse"><spectrum name="reflectance" value="500:1, 400:1"/></bsdf></shape>"#,
+    );
+    assert!(e.contains("<spectrum name=\"reflectance\">"), "{e}");
+}
+
+/// Mitsuba gives a shape with an emitter but no BSDF a black diffuse BSDF; other shapes
+/// without a BSDF get diffuse 0.5.
+#[test]
+fn a_light_without_a_bsdf_is_black() {
+    let d = desc_body(
+        r#"<shape type="rectangle"><emitter type="area"><rgb name="radiance" value="1"/></emitter></shape>
+           <shape type="rectangle"/>"#,
+    );
+    assert_eq!(
+        d.shapes[0].bsdf,
+        BsdfDesc::Diffuse {
+            reflectance: DVec3::ZERO
+        }
+    );
+    assert_eq!(
+        d.shapes[1].bsdf,
+        BsdfDesc::Diffuse {
+            reflectance: DVec3::splat(0.5)
+        }
+    );
+}
+
+#[test]
+fn direct_and_moment_integrators() {
+    let d = desc_body(r#"<integrator type="direct"/>"#);
+    assert_eq!(
+        d.integrator,
+        IntegratorDesc::Direct {
+            emitter_samples: 1,
+            bsdf_samples: 1,
+            hide_emitters: false
+        }
+    );
+    assert!(!d.moment);
+    let d = desc_body(
+        r#"<integrator type="moment"><integrator type="direct"><integer name="shading_samples" value="3"/></integrator></integrator>"#,
+    );
+    assert!(d.moment);
+    assert_eq!(
+        d.integrator,
+        IntegratorDesc::Direct {
+            emitter_samples: 3,
+            bsdf_samples: 3,
+            hide_emitters: false
+        }
+    );
+    let d = desc_body(
+        r#"<integrator type="moment"><integrator type="path"><integer name="max_depth" value="2"/></integrator></integrator>"#,
+    );
+    assert!(d.moment && matches!(d.integrator, IntegratorDesc::Path { max_depth: 2, .. }));
+    for (body, part) in [
+        (
+            r#"<integrator type="direct"><integer name="shading_samples" value="2"/><integer name="bsdf_samples" value="1"/></integrator>"#,
+            "not both",
+        ),
+        (
+            r#"<integrator type="direct"><integer name="emitter_samples" value="0"/><integer name="bsdf_samples" value="0"/></integrator>"#,
+            "at least 1",
+        ),
+        (r#"<integrator type="moment"/>"#, "needs a nested"),
+        (
+            r#"<integrator type="moment"><integrator type="path"/><integrator type="direct"/></integrator>"#,
+            "one nested integrator",
+        ),
+        (
+            r#"<integrator type="volpath"/>"#,
+            "unsupported plugin <integrator type=\"volpath\">",
+        ),
+    ] {
+        let e = error_body(body);
+        assert!(e.contains(part), "{body}: {e}");
+    }
+}
+
+#[test]
+fn sensors_with_mitsuba_defaults() {
+    let d = from_xml(
+        &load_str(
+            r#"<scene version="3.0.0"><sensor type="perspective"><string name="focal_length" value="35mm"/></sensor></scene>"#,
+            Path::new(FILE),
+            &[],
+        )
+        .unwrap(),
+    )
+    .unwrap();
+    let expected = 2.0
+        * ((36.0f64 * 36.0 + 24.0 * 24.0).sqrt() / 70.0)
+            .atan()
+            .to_degrees();
+    assert!((d.sensor.fov - expected).abs() < 1e-12);
+    let d = from_xml(
+        &load_str(
+            r#"<scene version="3.0.0"><sensor type="orthographic"><float name="near_clip" value="1"/></sensor></scene>"#,
+            Path::new(FILE),
+            &[],
+        )
+        .unwrap(),
+    )
+    .unwrap();
+    assert!(d.sensor.orthographic && d.sensor.near_clip == 1.0);
+    let e = from_xml(
+        &load_str(
+            r#"<scene version="3.0.0"><sensor type="perspective"><float name="fov" value="30"/><string name="focal_length" value="20mm"/></sensor></scene>"#,
+            Path::new(FILE),
+            &[],
+        )
+        .unwrap(),
+    )
+    .unwrap_err()
+    .to_string();
+    assert!(e.contains("either a focal length"), "{e}");
+}
+
+#[test]
+fn shape_groups_and_instances() {
+    let d = desc_body(
+        r#"<shape type="shapegroup" id="g">
+             <shape type="sphere"/><shape type="rectangle"/>
+           </shape>
+           <shape type="instance"><ref id="g"/></shape>
+           <shape type="instance"><ref id="g"/><transform name="to_world"><translate x="3"/></transform></shape>"#,
+    );
+    assert_eq!(d.shape_groups.len(), 1, "one group however many instances");
+    assert_eq!(d.shape_groups[0].shapes.len(), 2);
+    assert_eq!(d.shapes.len(), 2);
+    assert!(d
+        .shapes
+        .iter()
+        .all(|s| matches!(s.kind, ShapeKind::Instance { group: 0 })));
+    for (body, part) in [
+        (
+            r#"<shape type="shapegroup" id="g"><shape type="sphere"><emitter type="area"><rgb name="radiance" value="1"/></emitter></shape></shape>"#,
+            "instancing of emitters",
+        ),
+        (
+            r#"<shape type="instance"/>"#,
+            "needs a <ref> to a shapegroup",
+        ),
+        (
+            r#"<bsdf type="diffuse" id="b"/><shape type="instance"><ref id="b"/></shape>"#,
+            "an instance takes one shapegroup",
+        ),
+        (
+            r#"<shape type="sphere"><shape type="shapegroup"/></shape>"#,
+            "cannot be nested",
+        ),
+    ] {
+        let e = error_body(body);
+        assert!(e.contains(part), "{body}: {e}");
+    }
+}

@@ -37,13 +37,9 @@ fn mitsuba_regression_suite() {
         match suite::run(s, None) {
             Outcome::Judged(j) => {
                 println!(
-                    "{:<62} {} {:6.2}%  mean diff {:+.2}% {:+.2}% {:+.2}%  {} spp  {:.2} s",
+                    "{:<62} {}  {} spp  {:.2} s",
                     s.name,
-                    if j.passed { "pass" } else { "FAIL" },
-                    100.0 * j.pass_fraction,
-                    100.0 * j.mean_rel_diff[0],
-                    100.0 * j.mean_rel_diff[1],
-                    100.0 * j.mean_rel_diff[2],
+                    j.summary(),
                     j.spp,
                     j.seconds
                 );

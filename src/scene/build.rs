@@ -509,12 +509,7 @@ fn shape_geometry(
             face_normals,
             flip_tex_coords,
         } => {
-            let options = MeshOptions {
-                to_world: m,
-                face_normals: *face_normals,
-                flip_tex_coords: *flip_tex_coords,
-                flip_normals: sd.flip_normals,
-            };
+            let options = MeshOptions::new(m, *face_normals, *flip_tex_coords, sd.flip_normals);
             load_mesh(filename, MeshFormat::Ply, &options, warnings).map(ShapeGeometry::Mesh)
         }
         ShapeKind::Serialized {
@@ -523,12 +518,7 @@ fn shape_geometry(
             face_normals,
         } => {
             // Mitsuba's serialized meshes keep their texture coordinates as stored.
-            let options = MeshOptions {
-                to_world: m,
-                face_normals: *face_normals,
-                flip_tex_coords: false,
-                flip_normals: sd.flip_normals,
-            };
+            let options = MeshOptions::new(m, *face_normals, false, sd.flip_normals);
             let format = MeshFormat::Serialized {
                 shape_index: *shape_index,
             };
@@ -599,6 +589,22 @@ pub struct MeshOptions {
     pub flip_normals: bool,
 }
 
+impl MeshOptions {
+    pub fn new(
+        to_world: DMat4,
+        face_normals: bool,
+        flip_tex_coords: bool,
+        flip_normals: bool,
+    ) -> Self {
+        MeshOptions {
+            to_world,
+            face_normals,
+            flip_tex_coords,
+            flip_normals,
+        }
+    }
+}
+
 /// Loads a Wavefront OBJ with tobj (triangulated, single index), transforms it to world
 /// space and drops faces with non-finite or coincident vertices (counted in a warning).
 pub fn load_obj(
@@ -609,12 +615,7 @@ pub fn load_obj(
     flip_normals: bool,
     warnings: &mut Vec<String>,
 ) -> Result<Mesh> {
-    let options = MeshOptions {
-        to_world,
-        face_normals,
-        flip_tex_coords,
-        flip_normals,
-    };
+    let options = MeshOptions::new(to_world, face_normals, flip_tex_coords, flip_normals);
     load_mesh(path, MeshFormat::Obj, &options, warnings)
 }
 
@@ -645,12 +646,7 @@ pub fn obj_from_bytes(
     flip_normals: bool,
     warnings: &mut Vec<String>,
 ) -> Result<Mesh> {
-    let options = MeshOptions {
-        to_world,
-        face_normals,
-        flip_tex_coords,
-        flip_normals,
-    };
+    let options = MeshOptions::new(to_world, face_normals, flip_tex_coords, flip_normals);
     mesh_from_bytes(bytes, path, MeshFormat::Obj, &options, warnings)
 }
 

@@ -71,18 +71,6 @@ pub struct Cylinder {
     non_uniform_xy: bool,
 }
 
-/// Mitsuba's `coordinate_system` (Duff et al. 2017) in f64: two unit vectors completing the
-/// unit vector `n` to a right-handed orthonormal basis (s, t, n).
-fn coordinate_system(n: DVec3) -> (DVec3, DVec3) {
-    let sign = 1.0f64.copysign(n.z);
-    let a = -1.0 / (sign + n.z);
-    let b = n.x * n.y * a;
-    (
-        DVec3::new(1.0 + sign * n.x * n.x * a, sign * b, -sign * n.x),
-        DVec3::new(b, sign + n.y * n.y * a, -n.y),
-    )
-}
-
 impl Cylinder {
     /// The tube of radius `radius` around the segment `p0`–`p1` (object space of `to_world`),
     /// as Mitsuba's `cylinder` plugin builds it. `None` when degenerate: `p0 == p1`, radius 0,
@@ -101,7 +89,7 @@ impl Cylinder {
             return None;
         }
         let n = d / len;
-        let (s, t) = coordinate_system(n);
+        let (s, t) = crate::geometry::coordinate_system(n);
         let frame = DMat4::from_cols(
             s.extend(0.0),
             t.extend(0.0),

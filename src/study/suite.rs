@@ -109,6 +109,21 @@ pub enum Outcome {
     Judged(Judgement),
 }
 
+impl Judgement {
+    /// `pass` or `FAIL`, the share of passing pixel-channels and the mean differences, for
+    /// tables and logs.
+    pub fn summary(&self) -> String {
+        format!(
+            "{} {:.2}% | {:+.2}% / {:+.2}% / {:+.2}%",
+            if self.passed { "pass" } else { "FAIL" },
+            100.0 * self.pass_fraction,
+            100.0 * self.mean_rel_diff[0],
+            100.0 * self.mean_rel_diff[1],
+            100.0 * self.mean_rel_diff[2],
+        )
+    }
+}
+
 /// Mitsuba's `srgb_to_xyz` (single-precision coefficients, as in its source).
 fn srgb_to_xyz(c: [f32; 3]) -> [f64; 3] {
     const M: [[f32; 3]; 3] = [

@@ -318,7 +318,7 @@ pub fn from_xml(doc: &Document) -> Result<SceneDescription> {
     Props::new(root).finish()?;
     let cx = Ctx {
         resolver: &doc.resolver,
-        warnings: RefCell::new(Vec::new()),
+        warnings: RefCell::new(doc.warnings.clone()),
         groups: RefCell::new(Vec::new()),
     };
     let mut integrator = None;

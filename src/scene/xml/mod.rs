@@ -164,6 +164,8 @@ pub struct Object {
 pub struct Document {
     pub root: Object,
     pub resolver: FileResolver,
+    /// What the user should know that is not an error (non-unit rotation axes).
+    pub warnings: Vec<String>,
 }
 
 /// Loads the scene file at `path` and returns its `<scene>` root.
@@ -203,6 +205,7 @@ pub fn load_str(text: &str, path: &Path, overrides: &[(String, String)]) -> Resu
     Ok(Document {
         root,
         resolver: loader.resolver,
+        warnings: loader.warnings,
     })
 }
 
@@ -224,6 +227,8 @@ struct Loader {
     /// The nesting depth of the children of the current file's `<scene>` root, where
     /// `<path>` may appear.
     file_root_depth: usize,
+    /// Warnings met while parsing.
+    warnings: Vec<String>,
 }
 
 /// An object as parsed, before its references are resolved.
@@ -493,25 +498,21 @@ impl Elem<'_, '_> {
 
     /// Checks a parameter name (`name` attribute), as Mitsuba does.
     fn check_name(&self, name: &str) -> Result<()> {
-        if name.is_empty() {
-            Err(self.error(format!("empty name in {}", self.desc)))
-        } else if name.starts_with('_') {
-            Err(self.error(format!(
-                "invalid name \"{name}\" in {}: leading underscores are reserved",
-                self.desc
-            )))
-        } else {
-            Ok(())
-        }
+        self.check_identifier("name", name)
     }
 
     /// Checks an identifier (`id` attribute), as Mitsuba does.
     fn check_id(&self, id: &str) -> Result<()> {
-        if id.is_empty() {
-            Err(self.error(format!("empty id in {}", self.desc)))
-        } else if id.starts_with('_') {
+        self.check_identifier("id", id)
+    }
+
+    /// A `name` or `id` must be non-empty and must not start with '_' (Mitsuba reserves it).
+    fn check_identifier(&self, what: &str, value: &str) -> Result<()> {
+        if value.is_empty() {
+            Err(self.error(format!("empty {what} in {}", self.desc)))
+        } else if value.starts_with('_') {
             Err(self.error(format!(
-                "invalid id \"{id}\" in {}: leading underscores are reserved",
+                "invalid {what} \"{value}\" in {}: leading underscores are reserved",
                 self.desc
             )))
         } else {
@@ -717,6 +718,7 @@ impl Loader {
             substitution_budget: SUBSTITUTION_BUDGET,
             resolver,
             file_root_depth: 1,
+            warnings: Vec::new(),
         }
     }
 
@@ -1303,7 +1305,7 @@ impl Loader {
         let saved_resolver = self.resolver.clone();
         self.resolver.prepend(file.dir.clone());
         let path = self.resolver.resolve(Path::new(filename));
-        let result = self.include_file(file, elem, parent_desc, body, depth, path);
+        let result = self.include_file(elem, parent_desc, body, depth, path);
         self.resolver = saved_resolver;
         result
     }
@@ -1311,14 +1313,12 @@ impl Loader {
     /// Parses the included file at `path` (see [`Loader::parse_include`]).
     fn include_file(
         &mut self,
-        file: &SourceFile,
         elem: &Elem,
         parent_desc: &str,
         body: &mut Body,
         depth: usize,
         path: PathBuf,
     ) -> Result<()> {
-        let _ = file;
         if self.include_stack.len() > MAX_INCLUDE_DEPTH {
             return Err(elem.error(format!(
                 "{} exceeds the include depth limit of {MAX_INCLUDE_DEPTH}",
@@ -1386,6 +1386,17 @@ impl Loader {
                     let op = self.element(file, child)?;
                     ensure_leaf(file, &op)?;
                     let m = transform_op(&op, &elem.desc)?;
+                    if op.tag == "rotate" {
+                        let axis = op.xyz(0.0)?;
+                        if (axis.length_squared() - 1.0).abs() > 1e-6 {
+                            self.warnings.push(format!(
+                                "{}: {} has an axis of length {:.6}: Mitsuba does not normalise rotation axes, so this also scales and shears (penumbra does as Mitsuba)",
+                                op.location,
+                                op.desc,
+                                axis.length()
+                            ));
+                        }
+                    }
                     // Each operation applies after the previous ones, as in Mitsuba.
                     matrix = m * matrix;
                     if !matrix.is_finite() {
@@ -1528,13 +1539,10 @@ fn transform_op(op: &Elem, transform_desc: &str) -> Result<DMat4> {
             op.check_attrs(&["x", "y", "z", "value", "angle"])?;
             let axis = op.xyz(0.0)?;
             let angle = op.float_attr("angle")?;
-            let largest = axis.abs().max_element();
-            if largest == 0.0 {
+            if axis == DVec3::ZERO {
                 return Err(op.error(format!("{} has a zero rotation axis", op.desc)));
             }
-            // Dividing by the largest component first keeps huge axes from overflowing.
-            let axis = (axis / largest).normalize();
-            Ok(DMat4::from_axis_angle(axis, angle.to_radians()))
+            Ok(mitsuba_rotate(axis, angle))
         }
         "matrix" => {
             op.check_attrs(&["value"])?;
@@ -1568,6 +1576,22 @@ fn transform_op(op: &Elem, transform_desc: &str) -> Result<DMat4> {
     }
 }
 
+/// Mitsuba's `rotate`: cos θ · I + (1 − cos θ) · a aᵀ + sin θ · [a]×, with the axis `a` as
+/// written, NOT normalised (Mitsuba 3.9.1's `Transform::rotate` does not normalise it). For a
+/// unit axis this is the rotation by `angle` degrees about `a`; for another axis it also
+/// scales and shears, and Mitsuba's own hello.xml (axis 0, 1, 1) relies on it. The parser
+/// warns about such axes.
+fn mitsuba_rotate(a: DVec3, angle: f64) -> DMat4 {
+    let (s, c) = angle.to_radians().sin_cos();
+    let outer = DMat3::from_cols(a * a.x, a * a.y, a * a.z);
+    let cross = DMat3::from_cols(
+        DVec3::new(0.0, a.z, -a.y),
+        DVec3::new(-a.z, 0.0, a.x),
+        DVec3::new(a.y, -a.x, 0.0),
+    );
+    DMat4::from_mat3(DMat3::IDENTITY * c + outer * (1.0 - c) + cross * s)
+}
+
 /// Mitsuba's `look_at`: columns (left, new_up, dir, origin). A zero `up` picks one, as
 /// Mitsuba does.
 fn look_at(origin: DVec3, target: DVec3, up: DVec3) -> std::result::Result<DMat4, String> {
@@ -1575,7 +1599,7 @@ fn look_at(origin: DVec3, target: DVec3, up: DVec3) -> std::result::Result<DMat4
         .ok_or_else(|| "target coincides with origin".to_string())?;
     let up = match safe_normalize(up) {
         Some(up) => up,
-        None => coordinate_system(dir).0,
+        None => crate::geometry::coordinate_system(dir).0,
     };
     let left = up.cross(dir);
     // A relative test: a unit `up` (nearly) parallel to the unit `dir` leaves no frame.
@@ -1605,18 +1629,6 @@ fn safe_normalize(v: DVec3) -> Option<DVec3> {
     }
     let v = (v / largest).normalize();
     v.is_finite().then_some(v)
-}
-
-/// Two unit vectors completing unit `n` to an orthonormal basis (Duff et al. 2017, the
-/// construction Mitsuba's `coordinate_system` uses).
-fn coordinate_system(n: DVec3) -> (DVec3, DVec3) {
-    let sign = 1.0f64.copysign(n.z);
-    let a = -1.0 / (sign + n.z);
-    let b = n.x * n.y * a;
-    (
-        DVec3::new(1.0 + sign * n.x * n.x * a, sign * b, -sign * n.x),
-        DVec3::new(b, sign + n.y * n.y * a, -n.y),
-    )
 }
 
 #[cfg(test)]

@@ -631,13 +631,49 @@ fn translate_then_rotate() {
         ),
     );
     // The other order: (1,0,0) -> (0,1,0) -> (1,1,0).
-    let m = transform(r#"<rotate value="0 0 5" angle="90"/><translate value="1 0 0"/>"#);
+    let m = transform(r#"<rotate value="0 0 1" angle="90"/><translate value="1 0 0"/>"#);
     assert_vec(m.transform_point3(DVec3::X), DVec3::new(1.0, 1.0, 0.0));
     // Right-handed rotation about x: y goes to z.
-    let m = transform(r#"<rotate x="2" angle="90"/>"#);
+    let m = transform(r#"<rotate x="1" angle="90"/>"#);
     assert_vec(m.transform_vector3(DVec3::Y), DVec3::Z);
     let m = transform(r#"<translate value="1, 2, 3"/><translate y="-2"/>"#);
     assert_vec(m.transform_point3(DVec3::ZERO), DVec3::new(1.0, 0.0, 3.0));
+}
+
+/// Mitsuba does not normalise a rotation axis: `rotate` is cos θ I + (1 − cos θ) a aᵀ +
+/// sin θ [a]× with the axis as written. The matrix of Mitsuba's hello.xml (axis 0, 1, 1,
+/// 15°), as Mitsuba 3.9.1 prints it (`mi.ScalarTransform4f().rotate([0, 1, 1], 15)`), and an
+/// axis of length 5.
+#[test]
+fn rotation_axes_are_not_normalised_as_in_mitsuba() {
+    let m = transform(r#"<rotate x="0.0" y="1.0" z="1.0" angle="15"/>"#);
+    let expected = DMat4::from_cols(
+        DVec4::new(0.965926, 0.258819, -0.258819, 0.0),
+        DVec4::new(-0.258819, 1.0, 0.0340742, 0.0),
+        DVec4::new(0.258819, 0.0340742, 1.0, 0.0),
+        DVec4::W,
+    );
+    assert!(m.abs_diff_eq(expected, 1e-6), "{m:?}");
+    // cos 90° = 0: a aᵀ + [a]×, so x goes to 5 y.
+    let m = transform(r#"<rotate value="0 0 5" angle="90"/>"#);
+    assert_vec(m.transform_vector3(DVec3::X), DVec3::new(0.0, 5.0, 0.0));
+    assert_vec(m.transform_vector3(DVec3::Z), DVec3::new(0.0, 0.0, 25.0));
+    // The parser warns about it.
+    let doc = load_str(
+        &scene(
+            r#"<shape type="a"><transform name="t"><rotate y="2" angle="10"/></transform></shape>"#,
+        ),
+        Path::new("scene.xml"),
+        &[],
+    )
+    .unwrap();
+    assert!(
+        doc.warnings
+            .iter()
+            .any(|w| w.contains("does not normalise")),
+        "{:?}",
+        doc.warnings
+    );
 }
 
 #[test]
