@@ -201,7 +201,7 @@ fn environment_lights_chi2() {
         r#"<emitter type="envmap">
         <string name="filename" value="../scenes/textures/sky-64x32.exr"/>
         <float name="scale" value="2"/>
-        <transform name="to_world"><rotate value="1, 1, 0" angle="40"/></transform>
+        <transform name="to_world"><rotate value="0.70710678, 0.70710678, 0" angle="40"/></transform>
     </emitter>"#,
     );
     check_sampling("envmap", &s, Vec3::new(1.0, 2.0, 3.0), 9);

@@ -242,10 +242,21 @@ fn scene_emitter(e: &EmitterDesc, shift: DMat4) -> Result<Emitter> {
                     ),
                 ));
             }
+            // Keep only the rotation (Mitsuba's to_world for an envmap is a rotation): the
+            // nearest orthonormal frame by Gram-Schmidt, so that the map's sampling density
+            // stays exact even when the transform also scales or shears (a rotation about a
+            // non-unit axis does, see scene::xml's `rotate`).
             let m = DMat3::from_mat4(*to_world);
-            // Keep only the rotation (Mitsuba's to_world for an envmap is a rotation).
-            let axes = [m.x_axis, m.y_axis, m.z_axis].map(|a| a.normalize_or_zero());
-            let rot = DMat3::from_cols(axes[0], axes[1], axes[2]).as_mat3();
+            let x = m.x_axis.normalize_or_zero();
+            let y = (m.y_axis - x * x.dot(m.y_axis)).normalize_or_zero();
+            let z = x.cross(y) * m.determinant().signum();
+            if x == DVec3::ZERO || y == DVec3::ZERO {
+                return Err(Error::scene(
+                    location,
+                    "to_world of the environment map is degenerate",
+                ));
+            }
+            let rot = DMat3::from_cols(x, y, z).as_mat3();
             Emitter::EnvMap(
                 EnvMapEmitter::new(img.width, img.height, &img.rgb, *scale as f32, rot)
                     .ok_or_else(|| {
