@@ -27,7 +27,7 @@ fn bunny() -> Vec<Shape> {
         load_obj(&path, DMat4::IDENTITY, false, true, false, &mut Vec::new()).expect("bunny");
     vec![Shape {
         geometry: ShapeGeometry::Mesh(mesh),
-        bsdf: 0,
+        material: 0,
         emitter: None,
     }]
 }
@@ -62,7 +62,7 @@ pub fn sphere_mesh(n: usize) -> Vec<Shape> {
     let mesh = Mesh::new(p, None, None, t, false);
     vec![Shape {
         geometry: ShapeGeometry::Mesh(mesh),
-        bsdf: 0,
+        material: 0,
         emitter: None,
     }]
 }

@@ -691,6 +691,8 @@ fn instance_to_world(si: &SurfaceInteraction, inst: &Instance) -> SurfaceInterac
         dp_du,
         dp_dv: (lin * si.dp_dv.as_dvec3()).as_vec3(),
         shape: si.shape,
+        prim: si.prim,
+        bary: si.bary,
     }
 }
 
@@ -724,7 +726,7 @@ mod tests {
     fn shape(geometry: ShapeGeometry) -> Shape {
         Shape {
             geometry,
-            bsdf: 0,
+            material: 0,
             emitter: None,
         }
     }

@@ -16,6 +16,7 @@ pub mod film;
 pub mod geometry;
 pub mod integrator;
 pub mod io;
+pub mod material;
 pub mod progressive;
 pub mod render;
 pub mod sampler;
@@ -23,6 +24,7 @@ pub mod sampling;
 pub mod scene;
 pub mod shape;
 pub mod spectrum;
+pub mod texture;
 
 // The measurement side.
 pub mod study;

@@ -1,7 +1,12 @@
 //! No heap allocation per ray, bounce or sample (issue 8): with a counting global allocator,
-//! rendering a scene at 1 and at 16 samples per pixel allocates exactly as often — every
-//! allocation is per render or per tile, none per sample. Checked on every example scene, so
-//! every BSDF, emitter, filter and camera on the hot path is covered.
+//! rendering a scene at 1 and at 64 samples per pixel allocates as often — every allocation
+//! is per render or per tile, none per sample. Checked on every example scene, so every BSDF,
+//! material, emitter, filter and camera on the hot path is covered.
+//!
+//! The counts may differ by [`THREAD_SLACK`]: the worker thread's exit hands its garbage to
+//! crossbeam-epoch (rayon's deque), which allocates one or two bags depending on what the
+//! previous pool left (traced with backtraces: `crossbeam_epoch::internal::Local::finalize`).
+//! An allocation in even one sample in 4,000 adds more than that: 63 × 256 extra samples.
 
 mod common;
 
@@ -43,6 +48,9 @@ fn allocations_of_render(scene: &penumbra::scene::Scene, spp: u32) -> u64 {
 /// and the previous pool's thread may still allocate while it shuts down (seen: one
 /// allocation more or less in about one render in seven). Per-sample allocations would add
 /// thousands in every render.
+/// How much the counts of two renders may differ for reasons outside penumbra.
+const THREAD_SLACK: u64 = 2;
+
 fn fewest_allocations(scene: &penumbra::scene::Scene, spp: u32) -> u64 {
     (0..3)
         .map(|_| allocations_of_render(scene, spp))
@@ -66,11 +74,10 @@ fn rendering_allocates_nothing_per_sample() {
         // Warm-up: the first render creates lazily initialised state (thread-locals).
         allocations_of_render(&scene, 1);
         let one = fewest_allocations(&scene, 1);
-        let many = fewest_allocations(&scene, 16);
-        assert_eq!(
-            one,
-            many,
-            "{}: {one} allocations at 1 spp but {many} at 16 spp",
+        let many = fewest_allocations(&scene, 64);
+        assert!(
+            many <= one + THREAD_SLACK,
+            "{}: {one} allocations at 1 spp but {many} at 64 spp",
             rel.display()
         );
     }

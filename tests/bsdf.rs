@@ -22,6 +22,7 @@ use common::*;
 use glam::{Vec2, Vec3};
 use penumbra::bsdf::Bsdf;
 use penumbra::geometry::Frame;
+use penumbra::material::ShadingBsdf;
 use penumbra::sampler::SampleStream;
 use penumbra::study::chi2::{chi2_test_adaptive, Chi2Config, Chi2Result};
 use penumbra::study::stats::{normal_critical_z, sidak};
@@ -220,11 +221,11 @@ fn dir(theta_deg: f32, phi_deg: f32) -> Vec3 {
 /// Incident directions: near-normal (0.5°, so that φ is defined), 60° and the near-grazing
 /// 89.5°; for BSDFs that see both sides also from below: 160° (transmits into the outer
 /// medium), 115° (beyond the critical angle for η = 1.5: total internal reflection).
-fn incident_directions(b: &Bsdf) -> Vec<Vec3> {
+fn incident_directions(b: &ShadingBsdf) -> Vec<Vec3> {
     let mut v = vec![dir(0.5, 10.0), dir(60.0, 200.0), dir(89.5, 77.0)];
     if b.is_transmissive() {
         v.extend([dir(160.0, 250.0), dir(115.0, 15.0)]);
-    } else if matches!(b, Bsdf::TwoSided(_)) {
+    } else if b.as_leaf().is_none() {
         v.push(dir(130.0, 250.0));
     }
     v
@@ -313,7 +314,7 @@ impl Transform {
 /// [`Transform`].
 struct Chi2Job<'a> {
     case: &'a Case,
-    bsdf: Bsdf,
+    bsdf: ShadingBsdf,
     wi: Vec3,
     side: Option<f32>,
     transform: Option<Transform>,
@@ -362,7 +363,7 @@ fn run_chi2(job: &Chi2Job) -> Chi2Result {
 /// (a lower quantile than the median, so that the narrow lobe of a mixture such as rough
 /// plastic's is resolved; what the magnification compresses, the adaptive quadrature
 /// resolves).
-fn pilot_scale(b: &Bsdf, wi: Vec3, t: &Transform, center: glam::DVec3, seed: u64) -> f64 {
+fn pilot_scale(b: &ShadingBsdf, wi: Vec3, t: &Transform, center: glam::DVec3, seed: u64) -> f64 {
     let h = t.h;
     let mut rng = SampleStream::new(0x9e7, seed, 0);
     let mut angles = Vec::new();
@@ -387,12 +388,12 @@ fn pilot_scale(b: &Bsdf, wi: Vec3, t: &Transform, center: glam::DVec3, seed: u64
 
 /// The centre of the specular lobe on the given side (mirror or refracted direction through
 /// the macro-normal), if there is one.
-fn lobe_center(b: &Bsdf, wi: Vec3, side: f32) -> Option<Vec3> {
+fn lobe_center(b: &ShadingBsdf, wi: Vec3, side: f32) -> Option<Vec3> {
     if side > 0.0 {
         return Some(Vec3::new(-wi.x, -wi.y, wi.z));
     }
-    let eta = match b {
-        Bsdf::RoughDielectric(d) => d.eta,
+    let eta = match b.as_leaf() {
+        Some(Bsdf::RoughDielectric(d)) => d.eta,
         _ => return None,
     };
     let fr = penumbra::bsdf::fresnel::fresnel_dielectric(wi.z, eta);
@@ -496,7 +497,7 @@ fn chi2_sampling_matches_pdf() {
 }
 
 /// E[weight] per channel with transmission in importance form, and its standard error.
-fn albedo(b: &Bsdf, wi: Vec3, n: usize, seed: u64) -> (Vec3, Vec3) {
+fn albedo(b: &ShadingBsdf, wi: Vec3, n: usize, seed: u64) -> (Vec3, Vec3) {
     let mut rng = SampleStream::new(0xa1be, seed, 0);
     let (mut s, mut s2) = (glam::DVec3::ZERO, glam::DVec3::ZERO);
     for _ in 0..n {
@@ -585,9 +586,11 @@ fn white_furnace_ideal_conductor_and_smooth_dielectric() {
                 }
             }
             // The reflection frequency is the Fresnel reflectance (binomial z-test).
-            let r = match &b {
-                Bsdf::Dielectric(d) => penumbra::bsdf::fresnel::fresnel_dielectric(wi.z, d.eta).f,
-                Bsdf::ThinDielectric(d) => d.reflectance(wi.z),
+            let r = match b.as_leaf() {
+                Some(Bsdf::Dielectric(d)) => {
+                    penumbra::bsdf::fresnel::fresnel_dielectric(wi.z, d.eta).f
+                }
+                Some(Bsdf::ThinDielectric(d)) => d.reflectance(wi.z),
                 _ => unreachable!(),
             } as f64;
             let freq = reflected as f64 / n as f64;

@@ -41,6 +41,8 @@ fn reference_point(p: Vec3, n: Vec3) -> SurfaceInteraction {
         dp_du: Vec3::ZERO,
         dp_dv: Vec3::ZERO,
         shape: 0,
+        prim: 0,
+        bary: Vec2::ZERO,
     }
 }
 

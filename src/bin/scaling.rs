@@ -41,7 +41,7 @@ fn sphere(n: usize) -> Vec<Shape> {
     }
     vec![Shape {
         geometry: ShapeGeometry::Mesh(Mesh::new(p, None, None, t, false)),
-        bsdf: 0,
+        material: 0,
         emitter: None,
     }]
 }

@@ -52,6 +52,18 @@ impl Microfacet {
         }
     }
 
+    /// Sets the roughness along the tangent (clamped like [`Microfacet::new`]).
+    #[inline]
+    pub fn set_alpha_u(&mut self, a: f32) {
+        self.alpha_u = a.max(MIN_ALPHA);
+    }
+
+    /// Sets the roughness along the bitangent (clamped like [`Microfacet::new`]).
+    #[inline]
+    pub fn set_alpha_v(&mut self, a: f32) {
+        self.alpha_v = a.max(MIN_ALPHA);
+    }
+
     /// The same distribution with both roughnesses multiplied by `s`.
     pub fn scaled(&self, s: f32) -> Self {
         Microfacet::new(

@@ -14,7 +14,6 @@ pub mod roughconductor;
 pub mod roughdielectric;
 pub mod roughplastic;
 pub mod thindielectric;
-pub mod twosided;
 
 pub use conductor::Conductor;
 pub use dielectric::Dielectric;
@@ -25,7 +24,6 @@ pub use roughconductor::RoughConductor;
 pub use roughdielectric::RoughDielectric;
 pub use roughplastic::RoughPlastic;
 pub use thindielectric::ThinDielectric;
-pub use twosided::TwoSided;
 
 use glam::{Vec2, Vec3};
 
@@ -67,10 +65,12 @@ impl BsdfSample {
     }
 }
 
+/// Variants are stored inline, the largest (roughplastic with its 64-entry albedo table)
+/// included: a BSDF is copied into the shading point's tree, which must not allocate.
+#[allow(clippy::large_enum_variant)]
 #[derive(Clone, Debug)]
 pub enum Bsdf {
     Diffuse(Diffuse),
-    TwoSided(TwoSided),
     Conductor(Conductor),
     RoughConductor(RoughConductor),
     Dielectric(Dielectric),
@@ -85,7 +85,6 @@ impl Bsdf {
     pub fn eval(&self, wi: Vec3, wo: Vec3) -> Spectrum {
         match self {
             Bsdf::Diffuse(b) => b.eval(wi, wo),
-            Bsdf::TwoSided(b) => b.eval(wi, wo),
             Bsdf::Conductor(b) => b.eval(wi, wo),
             Bsdf::RoughConductor(b) => b.eval(wi, wo),
             Bsdf::Dielectric(b) => b.eval(wi, wo),
@@ -100,7 +99,6 @@ impl Bsdf {
     pub fn pdf(&self, wi: Vec3, wo: Vec3) -> f32 {
         match self {
             Bsdf::Diffuse(b) => b.pdf(wi, wo),
-            Bsdf::TwoSided(b) => b.pdf(wi, wo),
             Bsdf::Conductor(b) => b.pdf(wi, wo),
             Bsdf::RoughConductor(b) => b.pdf(wi, wo),
             Bsdf::Dielectric(b) => b.pdf(wi, wo),
@@ -115,7 +113,6 @@ impl Bsdf {
     pub fn sample(&self, wi: Vec3, u1: f32, u2: Vec2) -> Option<BsdfSample> {
         match self {
             Bsdf::Diffuse(b) => b.sample(wi, u2),
-            Bsdf::TwoSided(b) => b.sample(wi, u1, u2),
             Bsdf::Conductor(b) => b.sample(wi, u2),
             Bsdf::RoughConductor(b) => b.sample(wi, u2),
             Bsdf::Dielectric(b) => b.sample(wi, u1),
@@ -131,7 +128,6 @@ impl Bsdf {
     pub fn has_smooth_lobe(&self, wi: Vec3) -> bool {
         match self {
             Bsdf::Diffuse(_) => true,
-            Bsdf::TwoSided(b) => b.has_smooth_lobe(wi),
             Bsdf::Conductor(_) | Bsdf::Dielectric(_) | Bsdf::ThinDielectric(_) => false,
             Bsdf::RoughConductor(_) | Bsdf::Plastic(_) | Bsdf::RoughPlastic(_) => wi.z > 0.0,
             Bsdf::RoughDielectric(_) => true,
@@ -141,10 +137,64 @@ impl Bsdf {
     /// Whether the BSDF can transmit light to the other side (then reciprocity of `eval`
     /// does not hold in radiance mode, and albedos count transmission too).
     pub fn is_transmissive(&self) -> bool {
-        match self {
-            Bsdf::Dielectric(_) | Bsdf::ThinDielectric(_) | Bsdf::RoughDielectric(_) => true,
-            Bsdf::TwoSided(b) => b.front.is_transmissive() || b.back.is_transmissive(),
-            _ => false,
+        matches!(
+            self,
+            Bsdf::Dielectric(_) | Bsdf::ThinDielectric(_) | Bsdf::RoughDielectric(_)
+        )
+    }
+
+    /// Sets one parameter to a value looked up from a texture at the shading point (the
+    /// material layer builds a BSDF once with its constant parameters and patches the
+    /// textured ones per shading point). A parameter the BSDF does not have is ignored (the
+    /// scene builder only pairs parameters with the BSDFs that take them).
+    #[inline]
+    pub fn set_param(&mut self, param: BsdfParam, v: Spectrum) {
+        use BsdfParam as P;
+        match (self, param) {
+            (Bsdf::Diffuse(b), P::Reflectance) => b.reflectance = v,
+            (Bsdf::Conductor(b), P::Eta) => b.eta = v,
+            (Bsdf::Conductor(b), P::K) => b.k = v,
+            (Bsdf::Conductor(b), P::SpecularReflectance) => b.specular_reflectance = v,
+            (Bsdf::RoughConductor(b), P::Eta) => b.eta = v,
+            (Bsdf::RoughConductor(b), P::K) => b.k = v,
+            (Bsdf::RoughConductor(b), P::SpecularReflectance) => b.specular_reflectance = v,
+            (Bsdf::RoughConductor(b), P::AlphaU) => b.distribution.set_alpha_u(v.x),
+            (Bsdf::RoughConductor(b), P::AlphaV) => b.distribution.set_alpha_v(v.x),
+            (Bsdf::Dielectric(b), P::SpecularReflectance) => b.specular_reflectance = v,
+            (Bsdf::Dielectric(b), P::SpecularTransmittance) => b.specular_transmittance = v,
+            (Bsdf::ThinDielectric(b), P::SpecularReflectance) => b.specular_reflectance = v,
+            (Bsdf::ThinDielectric(b), P::SpecularTransmittance) => b.specular_transmittance = v,
+            (Bsdf::RoughDielectric(b), P::SpecularReflectance) => b.specular_reflectance = v,
+            (Bsdf::RoughDielectric(b), P::SpecularTransmittance) => b.specular_transmittance = v,
+            (Bsdf::RoughDielectric(b), P::AlphaU) => b.distribution.set_alpha_u(v.x),
+            (Bsdf::RoughDielectric(b), P::AlphaV) => b.distribution.set_alpha_v(v.x),
+            (Bsdf::Plastic(b), P::DiffuseReflectance) => b.diffuse_reflectance = v,
+            (Bsdf::Plastic(b), P::SpecularReflectance) => b.specular_reflectance = v,
+            (Bsdf::RoughPlastic(b), P::DiffuseReflectance) => b.diffuse_reflectance = v,
+            (Bsdf::RoughPlastic(b), P::SpecularReflectance) => b.specular_reflectance = v,
+            _ => {}
         }
+    }
+}
+
+/// A BSDF parameter that a texture can drive (Mitsuba's `get_texture` parameters). Scalar
+/// parameters (roughness) take the texture's `eval_1`, colours its `eval`; see
+/// [`BsdfParam::is_scalar`].
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum BsdfParam {
+    Reflectance,
+    DiffuseReflectance,
+    SpecularReflectance,
+    SpecularTransmittance,
+    Eta,
+    K,
+    AlphaU,
+    AlphaV,
+}
+
+impl BsdfParam {
+    /// Whether the parameter is one value (looked up with `eval_1`).
+    pub fn is_scalar(self) -> bool {
+        matches!(self, BsdfParam::AlphaU | BsdfParam::AlphaV)
     }
 }

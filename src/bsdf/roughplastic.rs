@@ -39,8 +39,9 @@ pub struct RoughPlastic {
     pub diffuse_reflectance: Spectrum,
     pub specular_reflectance: Spectrum,
     pub nonlinear: bool,
-    /// External transmittance T(μ) at μ = i / (TABLE_SIZE − 1).
-    transmittance: Vec<f32>,
+    /// External transmittance T(μ) at μ = i / (TABLE_SIZE − 1) (inline, so that the BSDF
+    /// is copied without allocating when textures vary its colours per shading point).
+    transmittance: [f32; TABLE_SIZE],
     /// Cosine-weighted internal reflectance of the coating.
     pub fdr_int: f32,
     pub specular_sampling_weight: f32,
@@ -135,14 +136,15 @@ impl RoughPlastic {
             diffuse_reflectance,
             specular_reflectance,
             nonlinear,
-            transmittance: Vec::new(),
+            transmittance: [0.0; TABLE_SIZE],
             fdr_int: 0.0,
             specular_sampling_weight: specular_sampling_weight(
                 specular_reflectance,
                 diffuse_reflectance,
             ),
         };
-        b.transmittance = albedo_table(&distribution, eta, Lobe::Transmission);
+        let table = albedo_table(&distribution, eta, Lobe::Transmission);
+        b.transmittance.copy_from_slice(&table);
         b.fdr_int = table_average(&albedo_table(&distribution, 1.0 / eta, Lobe::Reflection)) as f32;
         b
     }

@@ -78,7 +78,7 @@ impl DirectIntegrator {
             return result;
         };
         stats.bounces += 1;
-        let bsdf = &scene.bsdfs[scene.shapes[si.shape as usize].bsdf as usize];
+        let bsdf = scene.shading_bsdf(&si);
         let wi = si.frame.to_local(-ray.d.normalize());
 
         // Emitter sampling.
@@ -86,7 +86,7 @@ impl DirectIntegrator {
             let inv_n = 1.0 / self.emitter_samples as f32;
             for _ in 0..self.emitter_samples {
                 let u = sampler.next_2d();
-                if let Some(e) = sample_emitter(scene, &si, bsdf, wi, u, stats) {
+                if let Some(e) = sample_emitter(scene, &si, &bsdf, wi, u, stats) {
                     let w = if e.delta {
                         1.0
                     } else {

@@ -7,9 +7,10 @@ pub mod path;
 pub use direct::DirectIntegrator;
 pub use path::PathIntegrator;
 
-use crate::bsdf::{Bsdf, Spectrum};
+use crate::bsdf::Spectrum;
 use crate::emitter::Emitter;
 use crate::geometry::Ray;
+use crate::material::ShadingBsdf;
 use crate::sampler::SampleStream;
 use crate::scene::Scene;
 use crate::shape::SurfaceInteraction;
@@ -103,7 +104,7 @@ pub(crate) struct EmitterSample {
 pub(crate) fn sample_emitter(
     scene: &Scene,
     si: &SurfaceInteraction,
-    bsdf: &Bsdf,
+    bsdf: &ShadingBsdf,
     wi: Vec3,
     u: Vec2,
     stats: &mut PathStats,

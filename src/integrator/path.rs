@@ -88,13 +88,13 @@ impl PathIntegrator {
                 break;
             }
             stats.bounces += 1;
-            let bsdf = &scene.bsdfs[shape.bsdf as usize];
+            let bsdf = scene.shading_bsdf(&si);
             let wi = si.frame.to_local(wi_world);
 
             // Next-event estimation.
             let u_light = sampler.next_2d();
             if bsdf.has_smooth_lobe(wi) {
-                if let Some(e) = sample_emitter(scene, &si, bsdf, wi, u_light, stats) {
+                if let Some(e) = sample_emitter(scene, &si, &bsdf, wi, u_light, stats) {
                     // Delta emitters cannot be found by BSDF sampling: no MIS.
                     let w = if e.delta {
                         1.0

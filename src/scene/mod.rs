@@ -8,21 +8,23 @@ pub mod resolver;
 pub mod xml;
 
 use crate::accel::Accel;
-use crate::bsdf::Bsdf;
 use crate::camera::Camera;
 use crate::emitter::{DirectionSample, Emitter};
 use crate::error::Result;
 use crate::film::Filter;
 use crate::geometry::{offset_ray_origin, Ray, SHADOW_EPSILON};
 use crate::integrator::Integrator;
+use crate::material::{Material, ShadingBsdf, ShadingContext};
 use crate::shape::{Shape, SurfaceInteraction};
+use crate::texture::TextureContext;
 use glam::{Vec2, Vec3};
 use std::path::Path;
 
 /// A scene ready to render.
 pub struct Scene {
     pub shapes: Vec<Shape>,
-    pub bsdfs: Vec<Bsdf>,
+    /// The BSDFs of the shapes (and what they nest), with their textures.
+    pub materials: Vec<Material>,
     pub emitters: Vec<Emitter>,
     pub accel: Accel,
     pub camera: Camera,
@@ -105,6 +107,29 @@ impl Scene {
         let v = to - from;
         let len = v.length();
         Ray::new(from, v / len, len * (1.0 - SHADOW_EPSILON))
+    }
+
+    /// The BSDF at surface interaction `si`, its textures looked up.
+    #[inline]
+    pub fn shading_bsdf(&self, si: &SurfaceInteraction) -> ShadingBsdf {
+        let shape = &self.shapes[si.shape as usize];
+        let mesh = match &shape.geometry {
+            crate::shape::ShapeGeometry::Mesh(m) => Some(m),
+            _ => None,
+        };
+        let ctx = ShadingContext {
+            tex: TextureContext {
+                uv: si.uv,
+                prim: si.prim,
+                bary: si.bary,
+                mesh,
+            },
+            frame: si.frame,
+            dp_du: si.dp_du,
+            dp_dv: si.dp_dv,
+            ng: si.ng,
+        };
+        Material::shading_bsdf(&self.materials, shape.material, &ctx)
     }
 
     /// Probability of choosing emitter `i` for next-event estimation: uniform, as in

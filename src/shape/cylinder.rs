@@ -298,6 +298,8 @@ impl Cylinder {
             dp_du: dp_du.as_vec3(),
             dp_dv: self.dp_dv(),
             shape,
+            prim: 0,
+            bary: Vec2::ZERO,
         }
     }
 

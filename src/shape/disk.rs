@@ -109,6 +109,8 @@ impl Disk {
             dp_du,
             dp_dv,
             shape,
+            prim: 0,
+            bary: Vec2::ZERO,
         }
     }
 

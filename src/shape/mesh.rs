@@ -20,6 +20,18 @@ pub struct Mesh {
     area_distribution: Option<Distribution1D>,
     /// Unit geometric normal per triangle (flipped if `flip_normals`), computed once.
     face_normals: Vec<Vec3>,
+    /// Per-vertex and per-face attributes (PLY colours, ...), for `mesh_attribute` textures.
+    pub attributes: Vec<MeshAttribute>,
+}
+
+/// A named attribute of a mesh: one or three values per vertex (`vertex_*`) or per face
+/// (`face_*`, one row per entry of `Mesh::triangles`).
+#[derive(Clone, Debug)]
+pub struct MeshAttribute {
+    pub name: String,
+    pub channels: usize,
+    pub per_face: bool,
+    pub values: Vec<f32>,
 }
 
 impl Mesh {
@@ -39,6 +51,7 @@ impl Mesh {
             flip_normals,
             area_distribution: None,
             face_normals: Vec::new(),
+            attributes: Vec::new(),
         };
         mesh.face_normals = (0..mesh.triangles.len())
             .map(|t| mesh.compute_face_normal(t))
@@ -46,6 +59,31 @@ impl Mesh {
         mesh.area_distribution =
             Distribution1D::new((0..mesh.triangles.len()).map(|i| mesh.triangle_area(i)));
         mesh
+    }
+
+    /// The attribute `name` at barycentrics `bary` = (b1, b2) of triangle `tri`, with its
+    /// channel count (1 or 3; a single channel is in `x`). `None` if the mesh has no such
+    /// attribute.
+    pub fn eval_attribute(&self, name: &str, tri: usize, bary: Vec2) -> Option<(Vec3, usize)> {
+        let a = self.attributes.iter().find(|a| a.name == name)?;
+        let c = a.channels;
+        let row = |i: usize| -> Vec3 {
+            let v = a.values.get(i * c..i * c + c).unwrap_or(&[]);
+            Vec3::new(
+                v.first().copied().unwrap_or(0.0),
+                v.get(1).copied().unwrap_or(0.0),
+                v.get(2).copied().unwrap_or(0.0),
+            )
+        };
+        let value = if a.per_face {
+            row(tri)
+        } else {
+            let [i0, i1, i2] = *self.triangles.get(tri)?;
+            row(i0 as usize) * (1.0 - bary.x - bary.y)
+                + row(i1 as usize) * bary.x
+                + row(i2 as usize) * bary.y
+        };
+        Some((value, c))
     }
 
     pub fn vertices(&self, tri: usize) -> [Vec3; 3] {
@@ -154,6 +192,8 @@ impl Mesh {
             dp_du,
             dp_dv,
             shape,
+            prim: tri as u32,
+            bary: Vec2::new(b1, b2),
         }
     }
 

@@ -42,6 +42,10 @@ pub struct SurfaceInteraction {
     pub dp_dv: Vec3,
     /// Index of the shape hit, in `Scene::shapes`.
     pub shape: u32,
+    /// Triangle index within the mesh hit (0 for analytic shapes), for mesh attributes.
+    pub prim: u32,
+    /// Barycentrics (b1, b2) of the hit in that triangle (zero for analytic shapes).
+    pub bary: Vec2,
 }
 
 /// A point sampled on a shape's surface.
@@ -144,8 +148,8 @@ impl ShapeGeometry {
 #[derive(Clone, Debug)]
 pub struct Shape {
     pub geometry: ShapeGeometry,
-    /// Index into `Scene::bsdfs`.
-    pub bsdf: u32,
+    /// Index of its BSDF in `Scene::materials`.
+    pub material: u32,
     /// Index into `Scene::emitters`, for shapes carrying an area emitter.
     pub emitter: Option<u32>,
 }

@@ -754,6 +754,8 @@ impl SdfGrid {
             dp_du: Vec3::ZERO,
             dp_dv: Vec3::ZERO,
             shape,
+            prim: 0,
+            bary: Vec2::ZERO,
         }
     }
 }

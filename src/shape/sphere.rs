@@ -110,6 +110,8 @@ impl Sphere {
             dp_du,
             dp_dv: (to_world * dp_dv).as_vec3(),
             shape,
+            prim: 0,
+            bary: Vec2::ZERO,
         }
     }
 

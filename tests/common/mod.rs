@@ -51,8 +51,9 @@ pub fn image_mean_and_se(out: &RenderOutput, spp: u32) -> ([f64; 3], [f64; 3]) {
     (mean, se)
 }
 
-/// Builds the BSDF of a `<bsdf>` element through the scene parser (as a rectangle's BSDF).
-pub fn bsdf_from_xml(bsdf: &str) -> penumbra::bsdf::Bsdf {
+/// Builds the BSDF of a `<bsdf>` element through the scene parser (as a rectangle's BSDF),
+/// as it is at the rectangle's centre (uv = (0.5, 0.5), shading frame = the local frame).
+pub fn bsdf_from_xml(bsdf: &str) -> penumbra::material::ShadingBsdf {
     let xml = format!(
         r#"<scene version="3.0.0">
             <sensor type="perspective"><float name="fov" value="45"/>
@@ -61,5 +62,12 @@ pub fn bsdf_from_xml(bsdf: &str) -> penumbra::bsdf::Bsdf {
             <shape type="rectangle">{bsdf}</shape></scene>"#
     );
     let scene = scene_from_str(&xml);
-    scene.bsdfs[scene.shapes[0].bsdf as usize].clone()
+    let ctx = penumbra::material::ShadingContext {
+        tex: penumbra::texture::TextureContext::at_uv(glam::Vec2::splat(0.5)),
+        frame: penumbra::geometry::Frame::from_normal(glam::Vec3::Z),
+        dp_du: glam::Vec3::X,
+        dp_dv: glam::Vec3::Y,
+        ng: glam::Vec3::Z,
+    };
+    penumbra::material::Material::shading_bsdf(&scene.materials, scene.shapes[0].material, &ctx)
 }

@@ -1,12 +1,15 @@
-//! BSDFs: `diffuse`, `twosided`, conductors, dielectrics and plastics.
+//! BSDFs: `diffuse`, conductors, dielectrics, plastics, and Mitsuba's adapters (`twosided`,
+//! `mask`, `blendbsdf`, `normalmap`, `bumpmap`, `null`). Parameters Mitsuba reads as textures
+//! are [`TextureDesc`]s.
 
+use super::texture::{texture_desc, texture_or, texture_param, Children};
 use super::*;
 use crate::spectrum::ColorRole;
 
 #[derive(Clone, Debug, PartialEq)]
 pub enum BsdfDesc {
     Diffuse {
-        reflectance: DVec3,
+        reflectance: TextureDesc,
     },
     TwoSided {
         front: Box<BsdfDesc>,
@@ -14,60 +17,86 @@ pub enum BsdfDesc {
     },
     /// `conductor`: complex IOR (from `eta`/`k` or a named `material`).
     Conductor {
-        eta: DVec3,
-        k: DVec3,
-        specular_reflectance: DVec3,
+        eta: TextureDesc,
+        k: TextureDesc,
+        specular_reflectance: TextureDesc,
     },
     RoughConductor {
         distribution: MicrofacetDesc,
-        eta: DVec3,
-        k: DVec3,
-        specular_reflectance: DVec3,
+        eta: TextureDesc,
+        k: TextureDesc,
+        specular_reflectance: TextureDesc,
     },
     /// `dielectric`; IORs resolved to numbers (presets looked up).
     Dielectric {
         int_ior: f64,
         ext_ior: f64,
-        specular_reflectance: DVec3,
-        specular_transmittance: DVec3,
+        specular_reflectance: TextureDesc,
+        specular_transmittance: TextureDesc,
     },
     ThinDielectric {
         int_ior: f64,
         ext_ior: f64,
-        specular_reflectance: DVec3,
-        specular_transmittance: DVec3,
+        specular_reflectance: TextureDesc,
+        specular_transmittance: TextureDesc,
     },
     RoughDielectric {
         distribution: MicrofacetDesc,
         int_ior: f64,
         ext_ior: f64,
-        specular_reflectance: DVec3,
-        specular_transmittance: DVec3,
+        specular_reflectance: TextureDesc,
+        specular_transmittance: TextureDesc,
     },
     Plastic {
         int_ior: f64,
         ext_ior: f64,
-        diffuse_reflectance: DVec3,
-        specular_reflectance: DVec3,
+        diffuse_reflectance: TextureDesc,
+        specular_reflectance: TextureDesc,
         nonlinear: bool,
     },
+    /// `roughplastic`; its roughness is a number (Mitsuba precomputes tables for it).
     RoughPlastic {
         distribution: MicrofacetDesc,
         int_ior: f64,
         ext_ior: f64,
-        diffuse_reflectance: DVec3,
-        specular_reflectance: DVec3,
+        diffuse_reflectance: TextureDesc,
+        specular_reflectance: TextureDesc,
         nonlinear: bool,
     },
+    /// `mask`: `opacity` (one value) of the nested BSDF, the rest passes through.
+    Mask {
+        opacity: TextureDesc,
+        nested: Box<BsdfDesc>,
+    },
+    /// `blendbsdf`: (1 − `weight`) · first + `weight` · second.
+    Blend {
+        weight: TextureDesc,
+        nested: Box<[BsdfDesc; 2]>,
+    },
+    NormalMap {
+        normalmap: TextureDesc,
+        nested: Box<BsdfDesc>,
+        flip_invalid_normals: bool,
+        use_shadowing_function: bool,
+    },
+    BumpMap {
+        height: TextureDesc,
+        scale: f64,
+        nested: Box<BsdfDesc>,
+        flip_invalid_normals: bool,
+        use_shadowing_function: bool,
+    },
+    /// `null`: no interaction, light passes straight through.
+    Null,
 }
 
 /// Microfacet distribution parameters shared by the rough BSDFs (Mitsuba's `distribution`,
-/// `alpha` or `alpha_u`/`alpha_v`, `sample_visible`).
-#[derive(Clone, Copy, Debug, PartialEq)]
+/// `alpha` or `alpha_u`/`alpha_v` as one-value textures, `sample_visible`).
+#[derive(Clone, Debug, PartialEq)]
 pub struct MicrofacetDesc {
     pub kind: MicrofacetKind,
-    pub alpha_u: f64,
-    pub alpha_v: f64,
+    pub alpha_u: TextureDesc,
+    pub alpha_v: TextureDesc,
     pub sample_visible: bool,
 }
 
@@ -81,36 +110,58 @@ impl BsdfDesc {
     /// Mitsuba's default for a shape without a BSDF: diffuse with reflectance 0.5.
     pub fn default_diffuse() -> Self {
         BsdfDesc::Diffuse {
-            reflectance: DVec3::splat(0.5),
+            reflectance: TextureDesc::value(0.5),
         }
     }
 }
 
+/// The one nested `<bsdf>` of an adapter.
+fn one_nested(cx: &Ctx, o: &Object, ch: &mut Children) -> Result<Box<BsdfDesc>> {
+    let nested = ch.with_tag("bsdf");
+    match nested.as_slice() {
+        [b] => Ok(Box::new(bsdf_desc(cx, b)?)),
+        [] => Err(Error::scene(
+            &o.location,
+            format!("{} needs a nested <bsdf>", describe(o)),
+        )),
+        [_, extra, ..] => Err(Error::scene(
+            &extra.location,
+            format!("{} takes a single nested <bsdf>", describe(o)),
+        )),
+    }
+}
+
 pub(super) fn bsdf_desc(cx: &Ctx, o: &Arc<Object>) -> Result<BsdfDesc> {
-    match o.plugin.as_str() {
-        "diffuse" => {
-            no_children(o)?;
-            let mut p = Props::new(o);
-            let reflectance = p
-                .color("reflectance", ColorRole::Reflectance)?
-                .unwrap_or(DVec3::splat(0.5));
-            cx.finish(p)?;
-            Ok(BsdfDesc::Diffuse { reflectance })
-        }
+    let mut p = Props::new(o);
+    let mut ch = Children::new(o);
+    let refl = ColorRole::Reflectance;
+    let desc = match o.plugin.as_str() {
+        "diffuse" => BsdfDesc::Diffuse {
+            reflectance: texture_or(
+                cx,
+                &mut p,
+                &mut ch,
+                "reflectance",
+                refl,
+                TextureDesc::value(0.5),
+            )?,
+        },
         "twosided" => {
-            Props::new(o).finish()?;
-            let mut nested = Vec::new();
-            for Child { object: c, .. } in &o.children {
-                if c.tag != "bsdf" || nested.len() == 2 {
-                    return Err(unexpected_child(o, c));
-                }
-                if c.plugin == "twosided" {
-                    return Err(Error::scene(
-                        &c.location,
-                        "a twosided BSDF cannot nest another twosided",
-                    ));
-                }
-                nested.push(bsdf_desc(cx, c)?);
+            if let Some((true, loc)) = p
+                .take("allow_transmission")
+                .map(|(v, l)| (*v == Value::Boolean(true), l))
+            {
+                return Err(Error::scene(
+                    loc,
+                    format!("{}: allow_transmission is not supported", describe(o)),
+                ));
+            }
+            let nested = ch.with_tag("bsdf");
+            if let Some(inner) = nested.iter().find(|c| c.plugin == "twosided") {
+                return Err(Error::scene(
+                    &inner.location,
+                    "a twosided BSDF cannot nest another twosided",
+                ));
             }
             let mut it = nested.into_iter();
             let front = it.next().ok_or_else(|| {
@@ -119,26 +170,35 @@ pub(super) fn bsdf_desc(cx: &Ctx, o: &Arc<Object>) -> Result<BsdfDesc> {
                     format!("{} needs a nested <bsdf>", describe(o)),
                 )
             })?;
-            let back = it.next().unwrap_or_else(|| front.clone());
-            Ok(BsdfDesc::TwoSided {
+            let front = bsdf_desc(cx, front)?;
+            let back = match it.next() {
+                Some(b) => bsdf_desc(cx, b)?,
+                None => front.clone(),
+            };
+            if let Some(extra) = it.next() {
+                return Err(unexpected_child(o, extra));
+            }
+            BsdfDesc::TwoSided {
                 front: Box::new(front),
                 back: Box::new(back),
-            })
+            }
         }
         "conductor" | "roughconductor" => {
-            no_children(o)?;
-            let mut p = Props::new(o);
             let distribution = if o.plugin == "roughconductor" {
-                Some(microfacet_desc(&mut p, o, true)?)
+                Some(microfacet_desc(cx, &mut p, &mut ch, o, true)?)
             } else {
                 None
             };
-            let (eta, k) = conductor_ior(&mut p, o)?;
-            let specular_reflectance = p
-                .color("specular_reflectance", ColorRole::Reflectance)?
-                .unwrap_or(DVec3::ONE);
-            cx.finish(p)?;
-            Ok(match distribution {
+            let (eta, k) = conductor_ior(cx, &mut p, &mut ch, o)?;
+            let specular_reflectance = texture_or(
+                cx,
+                &mut p,
+                &mut ch,
+                "specular_reflectance",
+                refl,
+                TextureDesc::value(1.0),
+            )?;
+            match distribution {
                 None => BsdfDesc::Conductor {
                     eta,
                     k,
@@ -150,26 +210,33 @@ pub(super) fn bsdf_desc(cx: &Ctx, o: &Arc<Object>) -> Result<BsdfDesc> {
                     k,
                     specular_reflectance,
                 },
-            })
+            }
         }
         "dielectric" | "thindielectric" | "roughdielectric" => {
-            no_children(o)?;
-            let mut p = Props::new(o);
             let distribution = if o.plugin == "roughdielectric" {
-                Some(microfacet_desc(&mut p, o, true)?)
+                Some(microfacet_desc(cx, &mut p, &mut ch, o, true)?)
             } else {
                 None
             };
             let int_ior = ior(&mut p, o, "int_ior", "bk7")?;
             let ext_ior = ior(&mut p, o, "ext_ior", "air")?;
-            let specular_reflectance = p
-                .color("specular_reflectance", ColorRole::Reflectance)?
-                .unwrap_or(DVec3::ONE);
-            let specular_transmittance = p
-                .color("specular_transmittance", ColorRole::Reflectance)?
-                .unwrap_or(DVec3::ONE);
-            cx.finish(p)?;
-            Ok(match (o.plugin.as_str(), distribution) {
+            let specular_reflectance = texture_or(
+                cx,
+                &mut p,
+                &mut ch,
+                "specular_reflectance",
+                refl,
+                TextureDesc::value(1.0),
+            )?;
+            let specular_transmittance = texture_or(
+                cx,
+                &mut p,
+                &mut ch,
+                "specular_transmittance",
+                refl,
+                TextureDesc::value(1.0),
+            )?;
+            match (o.plugin.as_str(), distribution) {
                 ("roughdielectric", Some(distribution)) => BsdfDesc::RoughDielectric {
                     distribution,
                     int_ior,
@@ -189,28 +256,42 @@ pub(super) fn bsdf_desc(cx: &Ctx, o: &Arc<Object>) -> Result<BsdfDesc> {
                     specular_reflectance,
                     specular_transmittance,
                 },
-            })
+            }
         }
         "plastic" | "roughplastic" => {
-            no_children(o)?;
-            let mut p = Props::new(o);
             let distribution = if o.plugin == "roughplastic" {
-                // Mitsuba's roughplastic is isotropic only.
-                Some(microfacet_desc(&mut p, o, false)?)
+                // Mitsuba's roughplastic is isotropic, with a numeric roughness.
+                let d = microfacet_desc(cx, &mut p, &mut ch, o, false)?;
+                if d.alpha_u.constant_scalar().is_none() {
+                    return Err(Error::scene(
+                        &o.location,
+                        format!("the alpha of {} must be a number, not a texture (Mitsuba precomputes its tables from it)", describe(o)),
+                    ));
+                }
+                Some(d)
             } else {
                 None
             };
             let int_ior = ior(&mut p, o, "int_ior", "polypropylene")?;
             let ext_ior = ior(&mut p, o, "ext_ior", "air")?;
-            let diffuse_reflectance = p
-                .color("diffuse_reflectance", ColorRole::Reflectance)?
-                .unwrap_or(DVec3::splat(0.5));
-            let specular_reflectance = p
-                .color("specular_reflectance", ColorRole::Reflectance)?
-                .unwrap_or(DVec3::ONE);
+            let diffuse_reflectance = texture_or(
+                cx,
+                &mut p,
+                &mut ch,
+                "diffuse_reflectance",
+                refl,
+                TextureDesc::value(0.5),
+            )?;
+            let specular_reflectance = texture_or(
+                cx,
+                &mut p,
+                &mut ch,
+                "specular_reflectance",
+                refl,
+                TextureDesc::value(1.0),
+            )?;
             let nonlinear = p.boolean("nonlinear", false)?;
-            cx.finish(p)?;
-            Ok(match distribution {
+            match distribution {
                 None => BsdfDesc::Plastic {
                     int_ior,
                     ext_ior,
@@ -226,10 +307,98 @@ pub(super) fn bsdf_desc(cx: &Ctx, o: &Arc<Object>) -> Result<BsdfDesc> {
                     specular_reflectance,
                     nonlinear,
                 },
-            })
+            }
         }
-        _ => Err(unsupported_plugin(o)),
-    }
+        "mask" => {
+            let opacity = texture_or(
+                cx,
+                &mut p,
+                &mut ch,
+                "opacity",
+                refl,
+                TextureDesc::value(0.5),
+            )?;
+            BsdfDesc::Mask {
+                opacity,
+                nested: one_nested(cx, o, &mut ch)?,
+            }
+        }
+        "blendbsdf" => {
+            let weight = texture_param(cx, &mut p, &mut ch, "weight", refl)?.ok_or_else(|| {
+                Error::scene(&o.location, format!("{} needs a 'weight'", describe(o)))
+            })?;
+            let nested = ch.with_tag("bsdf");
+            let [a, b] = nested.as_slice() else {
+                return Err(Error::scene(
+                    &o.location,
+                    format!(
+                        "{} needs exactly two nested <bsdf>s, found {}",
+                        describe(o),
+                        nested.len()
+                    ),
+                ));
+            };
+            BsdfDesc::Blend {
+                weight,
+                nested: Box::new([bsdf_desc(cx, a)?, bsdf_desc(cx, b)?]),
+            }
+        }
+        "normalmap" => {
+            let normalmap = texture_param(cx, &mut p, &mut ch, "normalmap", ColorRole::Unbounded)?
+                .ok_or_else(|| {
+                    Error::scene(
+                        &o.location,
+                        format!("{} needs a 'normalmap' texture", describe(o)),
+                    )
+                })?;
+            BsdfDesc::NormalMap {
+                normalmap,
+                nested: one_nested(cx, o, &mut ch)?,
+                flip_invalid_normals: p.boolean("flip_invalid_normals", true)?,
+                use_shadowing_function: p.boolean("use_shadowing_function", true)?,
+            }
+        }
+        "bumpmap" => {
+            let textures = ch.with_tag("texture");
+            let height = match textures.as_slice() {
+                [t] => texture_desc(cx, t, ColorRole::Unbounded)?,
+                [] => {
+                    return Err(Error::scene(
+                        &o.location,
+                        format!(
+                            "{} needs a nested <texture> (the height field)",
+                            describe(o)
+                        ),
+                    ))
+                }
+                [_, extra, ..] => {
+                    return Err(Error::scene(
+                        &extra.location,
+                        format!("{} takes a single <texture>", describe(o)),
+                    ))
+                }
+            };
+            let scale = p.float("scale", 1.0)?;
+            if !scale.is_finite() {
+                return Err(Error::scene(
+                    &o.location,
+                    format!("scale of {} must be finite", describe(o)),
+                ));
+            }
+            BsdfDesc::BumpMap {
+                height,
+                scale,
+                nested: one_nested(cx, o, &mut ch)?,
+                flip_invalid_normals: p.boolean("flip_invalid_normals", true)?,
+                use_shadowing_function: p.boolean("use_shadowing_function", true)?,
+            }
+        }
+        "null" => BsdfDesc::Null,
+        _ => return Err(unsupported_plugin(o)),
+    };
+    cx.finish(p)?;
+    ch.finish()?;
+    Ok(desc)
 }
 
 /// An index of refraction given as a number or as one of Mitsuba's named presets.
@@ -258,12 +427,17 @@ pub(super) fn ior(p: &mut Props, o: &Object, name: &str, default: &str) -> Resul
     positive(value, name, o)
 }
 
-/// `eta` and `k` of a conductor: numbers/colours, or a named `material` (not both), as in
-/// Mitsuba; the default `none` is the ideal mirror η = 0, k = 1.
-pub(super) fn conductor_ior(p: &mut Props, o: &Object) -> Result<(DVec3, DVec3)> {
+/// `eta` and `k` of a conductor: textures (numbers, colours, spectra), or a named `material`
+/// (not both), as in Mitsuba; the default `none` is the ideal mirror η = 0, k = 1.
+pub(super) fn conductor_ior(
+    cx: &Ctx,
+    p: &mut Props,
+    ch: &mut Children,
+    o: &Object,
+) -> Result<(TextureDesc, TextureDesc)> {
     let material = p.string("material")?;
-    let eta = p.color("eta", ColorRole::Unbounded)?;
-    let k = p.color("k", ColorRole::Unbounded)?;
+    let eta = texture_param(cx, p, ch, "eta", ColorRole::Unbounded)?;
+    let k = texture_param(cx, p, ch, "k", ColorRole::Unbounded)?;
     match material {
         Some((name, loc)) if name != "none" => {
             if eta.is_some() || k.is_some() {
@@ -289,21 +463,22 @@ pub(super) fn conductor_ior(p: &mut Props, o: &Object) -> Result<(DVec3, DVec3)>
                     ),
                 )
             })?;
-            let v = |a: [f32; 3]| DVec3::new(a[0] as f64, a[1] as f64, a[2] as f64);
+            let v =
+                |a: [f32; 3]| TextureDesc::rgb(DVec3::new(a[0] as f64, a[1] as f64, a[2] as f64));
             Ok((v(e), v(kk)))
         }
         _ => {
-            let eta = eta.unwrap_or(DVec3::ZERO);
-            let k = k.unwrap_or(DVec3::ONE);
-            if !(eta.is_finite()
-                && k.is_finite()
-                && eta.min_element() >= 0.0
-                && k.min_element() >= 0.0)
-            {
-                return Err(Error::scene(
-                    &o.location,
-                    format!("eta and k of {} must be finite and >= 0", describe(o)),
-                ));
+            let eta = eta.unwrap_or(TextureDesc::value(0.0));
+            let k = k.unwrap_or(TextureDesc::value(1.0));
+            for t in [&eta, &k] {
+                if let Some(c) = t.constant_rgb() {
+                    if !(c.is_finite() && c.min_element() >= 0.0) {
+                        return Err(Error::scene(
+                            &o.location,
+                            format!("eta and k of {} must be finite and >= 0", describe(o)),
+                        ));
+                    }
+                }
             }
             Ok((eta, k))
         }
@@ -311,11 +486,14 @@ pub(super) fn conductor_ior(p: &mut Props, o: &Object) -> Result<(DVec3, DVec3)>
 }
 
 /// Mitsuba's microfacet parameters: `distribution` (beckmann | ggx, default beckmann),
-/// `alpha` (default 0.1) or, when `anisotropic` is allowed, both `alpha_u` and `alpha_v`;
-/// `sample_visible` (default true). Roughness must be finite and >= 0 (Mitsuba accepts
-/// negative values without meaning; penumbra refuses them).
+/// `alpha` (default 0.1) or, when `anisotropic` is allowed, both `alpha_u` and `alpha_v`
+/// (numbers or one-value textures); `sample_visible` (default true). A numeric roughness must
+/// be finite and >= 0 (Mitsuba accepts negative values without meaning; penumbra refuses
+/// them).
 pub(super) fn microfacet_desc(
+    cx: &Ctx,
     p: &mut Props,
+    ch: &mut Children,
     o: &Object,
     anisotropic: bool,
 ) -> Result<MicrofacetDesc> {
@@ -333,56 +511,55 @@ pub(super) fn microfacet_desc(
             ))
         }
     };
-    let has_alpha = p.obj.properties.iter().any(|q| q.name == "alpha");
-    let has_uv = p
-        .obj
-        .properties
-        .iter()
-        .any(|q| q.name == "alpha_u" || q.name == "alpha_v");
-    let (alpha_u, alpha_v) = if has_uv {
-        if !anisotropic {
+    let unb = ColorRole::Unbounded;
+    let alpha = texture_param(cx, p, ch, "alpha", unb)?;
+    let u = texture_param(cx, p, ch, "alpha_u", unb)?;
+    let v = texture_param(cx, p, ch, "alpha_v", unb)?;
+    let (alpha_u, alpha_v) = match (alpha, u, v) {
+        (a, None, None) => {
+            let a = a.unwrap_or(TextureDesc::value(0.1));
+            (a.clone(), a)
+        }
+        (_, Some(_), _) | (_, _, Some(_)) if !anisotropic => {
             return Err(Error::scene(
                 &o.location,
                 format!(
                     "{} does not support anisotropic roughness (alpha_u/alpha_v); use alpha",
                     describe(o)
                 ),
-            ));
+            ))
         }
-        if has_alpha {
+        (Some(_), _, _) => {
             return Err(Error::scene(
                 &o.location,
                 format!(
                     "{}: give either alpha or both alpha_u and alpha_v",
                     describe(o)
                 ),
-            ));
+            ))
         }
-        let u = p.float("alpha_u", f64::NAN)?;
-        let v = p.float("alpha_v", f64::NAN)?;
-        if u.is_nan() || v.is_nan() {
+        (None, Some(u), Some(v)) => (u, v),
+        (None, _, _) => {
             return Err(Error::scene(
                 &o.location,
                 format!(
                     "{}: both alpha_u and alpha_v must be specified",
                     describe(o)
                 ),
-            ));
+            ))
         }
-        (u, v)
-    } else {
-        let a = p.float("alpha", 0.1)?;
-        (a, a)
     };
-    for (name, a) in [("alpha_u", alpha_u), ("alpha_v", alpha_v)] {
-        if !(a >= 0.0 && a.is_finite()) {
-            return Err(Error::scene(
-                &o.location,
-                format!(
-                    "roughness {name} of {} must be finite and >= 0, got {a}",
-                    describe(o)
-                ),
-            ));
+    for (name, a) in [("alpha_u", &alpha_u), ("alpha_v", &alpha_v)] {
+        if let Some(a) = a.constant_scalar() {
+            if !(a >= 0.0 && a.is_finite()) {
+                return Err(Error::scene(
+                    &o.location,
+                    format!(
+                        "roughness {name} of {} must be finite and >= 0, got {a}",
+                        describe(o)
+                    ),
+                ));
+            }
         }
     }
     let sample_visible = p.boolean("sample_visible", true)?;

@@ -14,12 +14,14 @@ mod emitter;
 mod integrator;
 mod sensor;
 mod shape;
+mod texture;
 
 pub use bsdf::*;
 pub use emitter::*;
 pub use integrator::*;
 pub use sensor::*;
 pub use shape::*;
+pub use texture::{BitmapDesc, TextureDesc, WrapMode};
 
 use super::resolver::FileResolver;
 use super::xml::{Child, Document, Object, Value};
@@ -109,6 +111,14 @@ impl<'a> Props<'a> {
         self.used[i] = true;
         let p = &self.obj.properties[i];
         Some((&p.value, &p.location))
+    }
+
+    /// Marks `name` as unread again (a reader that looked at a property and leaves it to
+    /// another one).
+    pub(super) fn untake(&mut self, name: &str) {
+        if let Some(i) = self.obj.properties.iter().position(|p| p.name == name) {
+            self.used[i] = false;
+        }
     }
 
     pub(super) fn wrong_type(
@@ -376,7 +386,10 @@ pub fn from_xml(doc: &Document) -> Result<SceneDescription> {
             "bsdf" => {
                 bsdf_desc(&cx, o)?;
             }
-            "texture" => return Err(unsupported_plugin(o)),
+            // Declared for later <ref>s, checked now like BSDFs.
+            "texture" => {
+                texture::texture_desc(&cx, o, crate::spectrum::ColorRole::Reflectance)?;
+            }
             _ => return Err(unexpected_child(root, o)),
         }
     }

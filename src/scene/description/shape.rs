@@ -227,7 +227,7 @@ pub(super) fn shape_desc(cx: &Ctx, o: &Arc<Object>) -> Result<ShapeDesc> {
     let bsdf = bsdf.unwrap_or_else(|| {
         if emitter.is_some() {
             BsdfDesc::Diffuse {
-                reflectance: DVec3::ZERO,
+                reflectance: TextureDesc::value(0.0),
             }
         } else {
             BsdfDesc::default_diffuse()

@@ -1,0 +1,210 @@
+//! The BSDF at a shading point: a small tree of plain BSDFs and Mitsuba's adapters
+//! (`twosided`, `mask`, `blendbsdf`, `normalmap`, `bumpmap`, `null`) with every texture
+//! already looked up, stored inline (at most [`MAX_NODES`] nodes, no allocation). Node 0 is the
+//! root. Each adapter's rules live in its own file; this one dispatches.
+//!
+//! Conventions are those of [`crate::bsdf`]: local shading frame, `eval` includes |cos θo|,
+//! `sample` returns eval / pdf. A `null` event (light passing through a mask or a `null`
+//! BSDF) is sampled as a delta transmission `wo = −wi` with weight 1, as in Mitsuba, and counts
+//! as a bounce.
+
+use super::{blendbsdf, mask, normalmap, twosided};
+use crate::bsdf::{Bsdf, BsdfSample, Spectrum};
+use arrayvec::ArrayVec;
+use glam::{Vec2, Vec3};
+
+/// The most nodes a material becomes (leaves and adapters together); deeper materials are
+/// refused when the scene is built.
+pub const MAX_NODES: usize = 8;
+
+/// One node of a [`ShadingBsdf`]; children by index. Leaves are inline (no allocation at a
+/// shading point), hence the size difference between variants.
+#[allow(clippy::large_enum_variant)]
+#[derive(Clone, Debug)]
+pub enum Node {
+    Leaf(Bsdf),
+    TwoSided {
+        front: u8,
+        back: u8,
+    },
+    Mask {
+        opacity: f32,
+        nested: u8,
+    },
+    Blend {
+        weight: f32,
+        nested: [u8; 2],
+    },
+    /// A normal- or bump-mapped frame: see [`normalmap::Perturbation`].
+    Perturb {
+        perturbation: normalmap::Perturbation,
+        nested: u8,
+    },
+    Null,
+}
+
+/// The BSDF at one shading point.
+#[derive(Clone, Debug)]
+pub struct ShadingBsdf {
+    nodes: ArrayVec<Node, MAX_NODES>,
+}
+
+impl Default for ShadingBsdf {
+    fn default() -> Self {
+        Self::new()
+    }
+}
+
+impl ShadingBsdf {
+    pub fn new() -> Self {
+        ShadingBsdf {
+            nodes: ArrayVec::new(),
+        }
+    }
+
+    /// A shading BSDF of one plain BSDF.
+    pub fn leaf(b: Bsdf) -> Self {
+        let mut s = Self::new();
+        s.push(Node::Leaf(b));
+        s
+    }
+
+    /// Appends a node and returns its index. Past [`MAX_NODES`] nodes the node is dropped
+    /// and the returned index points at a null node (the scene builder prevents that).
+    pub fn push(&mut self, node: Node) -> u8 {
+        let i = self.nodes.len();
+        if self.nodes.try_push(node).is_err() {
+            return 0;
+        }
+        i as u8
+    }
+
+    pub fn set(&mut self, i: u8, node: Node) {
+        if let Some(slot) = self.nodes.get_mut(i as usize) {
+            *slot = node;
+        }
+    }
+
+    /// The root's plain BSDF, when the whole tree is one leaf.
+    pub fn as_leaf(&self) -> Option<&Bsdf> {
+        match self.nodes.first() {
+            Some(Node::Leaf(b)) if self.nodes.len() == 1 => Some(b),
+            _ => None,
+        }
+    }
+
+    #[inline]
+    fn node(&self, i: u8) -> &Node {
+        self.nodes.get(i as usize).unwrap_or(&Node::Null)
+    }
+
+    /// f(wi, wo) |cos θo| (non-delta lobes only).
+    #[inline]
+    pub fn eval(&self, wi: Vec3, wo: Vec3) -> Spectrum {
+        self.eval_node(0, wi, wo)
+    }
+
+    /// Solid-angle density with which [`ShadingBsdf::sample`] produces `wo` (non-delta).
+    #[inline]
+    pub fn pdf(&self, wi: Vec3, wo: Vec3) -> f32 {
+        self.pdf_node(0, wi, wo)
+    }
+
+    /// Samples an outgoing direction; `u1` picks lobes (and nested BSDFs), `u2` the
+    /// direction.
+    #[inline]
+    pub fn sample(&self, wi: Vec3, u1: f32, u2: Vec2) -> Option<BsdfSample> {
+        self.sample_node(0, wi, u1, u2)
+    }
+
+    /// Whether the BSDF has a non-delta lobe for `wi` (emitter sampling is useful).
+    pub fn has_smooth_lobe(&self, wi: Vec3) -> bool {
+        self.smooth_node(0, wi)
+    }
+
+    /// Whether the BSDF can send light to the other side of the surface.
+    pub fn is_transmissive(&self) -> bool {
+        self.nodes.iter().any(|n| match n {
+            Node::Leaf(b) => b.is_transmissive(),
+            Node::Mask { .. } | Node::Null => true,
+            _ => false,
+        })
+    }
+
+    pub(crate) fn eval_node(&self, i: u8, wi: Vec3, wo: Vec3) -> Spectrum {
+        match self.node(i) {
+            Node::Leaf(b) => b.eval(wi, wo),
+            Node::TwoSided { front, back } => twosided::eval(self, *front, *back, wi, wo),
+            Node::Mask { opacity, nested } => mask::eval(self, *opacity, *nested, wi, wo),
+            Node::Blend { weight, nested } => blendbsdf::eval(self, *weight, *nested, wi, wo),
+            Node::Perturb {
+                perturbation,
+                nested,
+            } => perturbation.eval(self, *nested, wi, wo),
+            Node::Null => Spectrum::ZERO,
+        }
+    }
+
+    pub(crate) fn pdf_node(&self, i: u8, wi: Vec3, wo: Vec3) -> f32 {
+        match self.node(i) {
+            Node::Leaf(b) => b.pdf(wi, wo),
+            Node::TwoSided { front, back } => twosided::pdf(self, *front, *back, wi, wo),
+            Node::Mask { opacity, nested } => mask::pdf(self, *opacity, *nested, wi, wo),
+            Node::Blend { weight, nested } => blendbsdf::pdf(self, *weight, *nested, wi, wo),
+            Node::Perturb {
+                perturbation,
+                nested,
+            } => perturbation.pdf(self, *nested, wi, wo),
+            Node::Null => 0.0,
+        }
+    }
+
+    pub(crate) fn sample_node(&self, i: u8, wi: Vec3, u1: f32, u2: Vec2) -> Option<BsdfSample> {
+        match self.node(i) {
+            Node::Leaf(b) => b.sample(wi, u1, u2),
+            Node::TwoSided { front, back } => twosided::sample(self, *front, *back, wi, u1, u2),
+            Node::Mask { opacity, nested } => mask::sample(self, *opacity, *nested, wi, u1, u2),
+            Node::Blend { weight, nested } => blendbsdf::sample(self, *weight, *nested, wi, u1, u2),
+            Node::Perturb {
+                perturbation,
+                nested,
+            } => perturbation.sample(self, *nested, wi, u1, u2),
+            Node::Null => Some(null_sample(wi, 1.0)),
+        }
+    }
+
+    pub(crate) fn smooth_node(&self, i: u8, wi: Vec3) -> bool {
+        match self.node(i) {
+            Node::Leaf(b) => b.has_smooth_lobe(wi),
+            Node::TwoSided { front, back } => {
+                if wi.z < 0.0 {
+                    self.smooth_node(*back, twosided::flip(wi))
+                } else {
+                    self.smooth_node(*front, wi)
+                }
+            }
+            Node::Mask { nested, opacity } => *opacity > 0.0 && self.smooth_node(*nested, wi),
+            Node::Blend { weight, nested } => {
+                (*weight < 1.0 && self.smooth_node(nested[0], wi))
+                    || (*weight > 0.0 && self.smooth_node(nested[1], wi))
+            }
+            // The perturbed frame may turn wi to either side: ask the nested BSDF with both.
+            Node::Perturb { nested, .. } => {
+                self.smooth_node(*nested, wi) || self.smooth_node(*nested, twosided::flip(wi))
+            }
+            Node::Null => false,
+        }
+    }
+}
+
+/// Light passing straight through (Mitsuba's `Null` lobe): `wo = −wi`, a delta event of
+/// probability `pdf` and weight 1.
+pub(crate) fn null_sample(wi: Vec3, pdf: f32) -> BsdfSample {
+    BsdfSample {
+        wo: -wi,
+        pdf,
+        weight: Spectrum::ONE,
+        eta: 1.0,
+        delta: true,
+    }
+}

@@ -1,0 +1,275 @@
+//! Materials and textures of the scene, built once from their descriptions: leaf BSDFs with
+//! their constant parameters (and Fresnel tables, and the sampling weights Mitsuba derives
+//! from the textures' means), the textures that vary the others, and the adapters nesting
+//! other materials by index. Equal BSDF descriptions (a `<bsdf id>` used by many shapes)
+//! become one material, and a bitmap used by several textures is loaded once.
+
+use crate::bsdf::{
+    Bsdf, BsdfParam, Conductor, Dielectric, Diffuse, Microfacet, MicrofacetType, Plastic,
+    RoughConductor, RoughDielectric, RoughPlastic, ThinDielectric,
+};
+use crate::error::{Error, Result};
+use crate::material::{Material, MAX_NODES};
+use crate::scene::description::{BsdfDesc, MicrofacetDesc, MicrofacetKind, TextureDesc};
+use crate::texture::{Checkerboard, MeshAttributeTexture, Texture, UvTransform};
+use glam::Vec3;
+
+/// Builds the scene's material list.
+#[derive(Default)]
+pub struct MaterialBuilder {
+    pub materials: Vec<Material>,
+    /// Descriptions already built, with their material index.
+    built: Vec<(BsdfDesc, u32)>,
+}
+
+impl MaterialBuilder {
+    /// The index of the material for `d`, building it (and what it nests) if needed.
+    pub fn material(&mut self, d: &BsdfDesc) -> Result<u32> {
+        if let Some((_, i)) = self.built.iter().find(|(b, _)| b == d) {
+            return Ok(*i);
+        }
+        let m = self.build(d)?;
+        let i = self.materials.len() as u32;
+        self.materials.push(m);
+        if Material::node_count(&self.materials, i).is_none() {
+            return Err(Error::Invalid(format!(
+                "a BSDF nests more than {MAX_NODES} BSDFs and adapters"
+            )));
+        }
+        self.built.push((d.clone(), i));
+        Ok(i)
+    }
+
+    fn build(&mut self, d: &BsdfDesc) -> Result<Material> {
+        Ok(match d {
+            BsdfDesc::TwoSided { front, back } => Material::TwoSided {
+                front: self.material(front)?,
+                back: self.material(back)?,
+            },
+            BsdfDesc::Mask { opacity, nested } => Material::Mask {
+                opacity: self.texture(opacity)?,
+                nested: self.material(nested)?,
+            },
+            BsdfDesc::Blend { weight, nested } => Material::Blend {
+                weight: self.texture(weight)?,
+                nested: [self.material(&nested[0])?, self.material(&nested[1])?],
+            },
+            BsdfDesc::NormalMap {
+                normalmap,
+                nested,
+                flip_invalid_normals,
+                use_shadowing_function,
+            } => Material::NormalMap {
+                normalmap: self.texture(normalmap)?,
+                nested: self.material(nested)?,
+                flip_invalid_normals: *flip_invalid_normals,
+                use_shadowing_function: *use_shadowing_function,
+            },
+            BsdfDesc::BumpMap {
+                height,
+                scale,
+                nested,
+                flip_invalid_normals,
+                use_shadowing_function,
+            } => Material::BumpMap {
+                height: self.texture(height)?,
+                scale: *scale as f32,
+                nested: self.material(nested)?,
+                flip_invalid_normals: *flip_invalid_normals,
+                use_shadowing_function: *use_shadowing_function,
+            },
+            BsdfDesc::Null => Material::Null,
+            leaf => self.leaf(leaf)?,
+        })
+    }
+
+    /// A leaf BSDF: the template with every parameter at its texture's mean (constants at
+    /// their value), and the textures of the parameters that vary.
+    fn leaf(&mut self, d: &BsdfDesc) -> Result<Material> {
+        let mut textures: Vec<(BsdfParam, Texture)> = Vec::new();
+        // A colour parameter: its constant value or its texture's mean (for the template).
+        let mut param = |this: &mut Self, p: BsdfParam, t: &TextureDesc| -> Result<Vec3> {
+            let tex = this.texture(t)?;
+            let v = match &tex {
+                Texture::Constant { rgb, scalar } => {
+                    if p.is_scalar() {
+                        Vec3::splat(*scalar)
+                    } else {
+                        *rgb
+                    }
+                }
+                other => Vec3::splat(other.mean()),
+            };
+            if !tex.is_constant() {
+                textures.push((p, tex));
+            }
+            Ok(v)
+        };
+        use BsdfParam as P;
+        let template = match d {
+            BsdfDesc::Diffuse { reflectance } => Bsdf::Diffuse(Diffuse {
+                reflectance: param(self, P::Reflectance, reflectance)?,
+            }),
+            BsdfDesc::Conductor {
+                eta,
+                k,
+                specular_reflectance,
+            } => Bsdf::Conductor(Conductor {
+                eta: param(self, P::Eta, eta)?,
+                k: param(self, P::K, k)?,
+                specular_reflectance: param(self, P::SpecularReflectance, specular_reflectance)?,
+            }),
+            BsdfDesc::RoughConductor {
+                distribution,
+                eta,
+                k,
+                specular_reflectance,
+            } => {
+                let au = param(self, P::AlphaU, &distribution.alpha_u)?.x;
+                let av = param(self, P::AlphaV, &distribution.alpha_v)?.x;
+                Bsdf::RoughConductor(RoughConductor {
+                    distribution: microfacet(distribution, au, av),
+                    eta: param(self, P::Eta, eta)?,
+                    k: param(self, P::K, k)?,
+                    specular_reflectance: param(
+                        self,
+                        P::SpecularReflectance,
+                        specular_reflectance,
+                    )?,
+                })
+            }
+            BsdfDesc::Dielectric {
+                int_ior,
+                ext_ior,
+                specular_reflectance,
+                specular_transmittance,
+            } => Bsdf::Dielectric(Dielectric {
+                eta: (int_ior / ext_ior) as f32,
+                specular_reflectance: param(self, P::SpecularReflectance, specular_reflectance)?,
+                specular_transmittance: param(
+                    self,
+                    P::SpecularTransmittance,
+                    specular_transmittance,
+                )?,
+            }),
+            BsdfDesc::ThinDielectric {
+                int_ior,
+                ext_ior,
+                specular_reflectance,
+                specular_transmittance,
+            } => Bsdf::ThinDielectric(ThinDielectric {
+                eta: (int_ior / ext_ior) as f32,
+                specular_reflectance: param(self, P::SpecularReflectance, specular_reflectance)?,
+                specular_transmittance: param(
+                    self,
+                    P::SpecularTransmittance,
+                    specular_transmittance,
+                )?,
+            }),
+            BsdfDesc::RoughDielectric {
+                distribution,
+                int_ior,
+                ext_ior,
+                specular_reflectance,
+                specular_transmittance,
+            } => {
+                let au = param(self, P::AlphaU, &distribution.alpha_u)?.x;
+                let av = param(self, P::AlphaV, &distribution.alpha_v)?.x;
+                Bsdf::RoughDielectric(RoughDielectric {
+                    distribution: microfacet(distribution, au, av),
+                    eta: (int_ior / ext_ior) as f32,
+                    specular_reflectance: param(
+                        self,
+                        P::SpecularReflectance,
+                        specular_reflectance,
+                    )?,
+                    specular_transmittance: param(
+                        self,
+                        P::SpecularTransmittance,
+                        specular_transmittance,
+                    )?,
+                })
+            }
+            BsdfDesc::Plastic {
+                int_ior,
+                ext_ior,
+                diffuse_reflectance,
+                specular_reflectance,
+                nonlinear,
+            } => Bsdf::Plastic(Plastic::new(
+                (int_ior / ext_ior) as f32,
+                param(self, P::DiffuseReflectance, diffuse_reflectance)?,
+                param(self, P::SpecularReflectance, specular_reflectance)?,
+                *nonlinear,
+            )),
+            BsdfDesc::RoughPlastic {
+                distribution,
+                int_ior,
+                ext_ior,
+                diffuse_reflectance,
+                specular_reflectance,
+                nonlinear,
+            } => {
+                // The description guarantees a numeric roughness.
+                let a = distribution.alpha_u.constant_scalar().unwrap_or(0.1) as f32;
+                Bsdf::RoughPlastic(RoughPlastic::new(
+                    microfacet(distribution, a, a),
+                    (int_ior / ext_ior) as f32,
+                    param(self, P::DiffuseReflectance, diffuse_reflectance)?,
+                    param(self, P::SpecularReflectance, specular_reflectance)?,
+                    *nonlinear,
+                ))
+            }
+            _ => unreachable!("adapters are built by MaterialBuilder::build"),
+        };
+        Ok(Material::Leaf { template, textures })
+    }
+
+    /// A texture from its description.
+    pub fn texture(&mut self, d: &TextureDesc) -> Result<Texture> {
+        Ok(match d {
+            TextureDesc::Constant { rgb, scalar } => Texture::Constant {
+                rgb: rgb.as_vec3(),
+                scalar: *scalar as f32,
+            },
+            TextureDesc::Raw(v) => Texture::Constant {
+                rgb: v.as_vec3(),
+                scalar: v.x as f32,
+            },
+            TextureDesc::Checkerboard {
+                color0,
+                color1,
+                to_uv,
+            } => Texture::Checkerboard(Box::new(Checkerboard {
+                color0: self.texture(color0)?,
+                color1: self.texture(color1)?,
+                to_uv: UvTransform::from_mat3(*to_uv),
+            })),
+            TextureDesc::MeshAttribute { name, scale } => {
+                Texture::MeshAttribute(MeshAttributeTexture {
+                    name: name.clone(),
+                    scale: *scale as f32,
+                })
+            }
+            TextureDesc::Bitmap(b) => {
+                return Err(Error::scene(
+                    &b.location,
+                    "bitmap textures are not wired in yet",
+                ))
+            }
+        })
+    }
+}
+
+/// A microfacet distribution with roughnesses `alpha_u`, `alpha_v`.
+fn microfacet(d: &MicrofacetDesc, alpha_u: f32, alpha_v: f32) -> Microfacet {
+    Microfacet::new(
+        match d.kind {
+            MicrofacetKind::Beckmann => MicrofacetType::Beckmann,
+            MicrofacetKind::Ggx => MicrofacetType::Ggx,
+        },
+        alpha_u,
+        alpha_v,
+        d.sample_visible,
+    )
+}

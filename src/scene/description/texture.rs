@@ -1,0 +1,297 @@
+//! Textures (`bitmap`, `checkerboard`, `mesh_attribute`, `rawconstant`, `srgb`, `uniform`)
+//! and texture-valued parameters: a parameter Mitsuba reads with `get_texture` can be a
+//! colour, a float, a `<spectrum>`, or a nested or referenced `<texture>`.
+
+use super::*;
+use crate::spectrum::ColorRole;
+use glam::DMat3;
+
+#[derive(Clone, Debug, PartialEq)]
+pub enum TextureDesc {
+    /// The same value everywhere: `rgb` for colour lookups, `scalar` for one-value lookups
+    /// (a float's value, a colour's mean, as Mitsuba's `srgb` texture).
+    Constant {
+        rgb: DVec3,
+        scalar: f64,
+    },
+    /// Mitsuba's `rawconstant`: the value as given, not converted (normal maps).
+    Raw(DVec3),
+    Bitmap(BitmapDesc),
+    Checkerboard {
+        color0: Box<TextureDesc>,
+        color1: Box<TextureDesc>,
+        to_uv: DMat3,
+    },
+    MeshAttribute {
+        name: String,
+        scale: f64,
+    },
+}
+
+/// Mitsuba's `bitmap` texture.
+#[derive(Clone, Debug, PartialEq)]
+pub struct BitmapDesc {
+    pub filename: PathBuf,
+    /// `raw`: keep 8/16-bit values as stored (no sRGB decoding).
+    pub raw: bool,
+    /// `filter_type`: bilinear (true, the default) or nearest.
+    pub bilinear: bool,
+    pub wrap: WrapMode,
+    /// `to_uv` as a 2D affine map (Mitsuba takes the upper-left 2x2 block and the
+    /// translation of the 4x4 transform).
+    pub to_uv: DMat3,
+    pub location: Location,
+}
+
+/// Mitsuba's `wrap_mode`.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum WrapMode {
+    Repeat,
+    Mirror,
+    Clamp,
+}
+
+impl TextureDesc {
+    /// A constant colour (its one-value lookup is the mean, as Mitsuba's `srgb` texture; a
+    /// grey's is its value exactly, so that `rgb(splat(v)) == value(v)`).
+    pub fn rgb(c: DVec3) -> Self {
+        let scalar = if c.x == c.y && c.y == c.z {
+            c.x
+        } else {
+            (c.x + c.y + c.z) / 3.0
+        };
+        TextureDesc::Constant { rgb: c, scalar }
+    }
+
+    /// A constant value (grey colour, that value for one-value lookups).
+    pub fn value(v: f64) -> Self {
+        TextureDesc::Constant {
+            rgb: DVec3::splat(v),
+            scalar: v,
+        }
+    }
+
+    /// The colour, if the texture is constant.
+    pub fn constant_rgb(&self) -> Option<DVec3> {
+        match self {
+            TextureDesc::Constant { rgb, .. } => Some(*rgb),
+            TextureDesc::Raw(v) => Some(*v),
+            _ => None,
+        }
+    }
+
+    /// The one-value lookup, if the texture is constant.
+    pub fn constant_scalar(&self) -> Option<f64> {
+        match self {
+            TextureDesc::Constant { scalar, .. } => Some(*scalar),
+            TextureDesc::Raw(v) => Some(v.x),
+            _ => None,
+        }
+    }
+}
+
+/// The children of an object (nested or referenced objects), consumed by name or by tag;
+/// [`Children::finish`] reports the first one nobody asked for.
+pub(super) struct Children<'a> {
+    obj: &'a Object,
+    used: Vec<bool>,
+}
+
+impl<'a> Children<'a> {
+    pub fn new(obj: &'a Object) -> Self {
+        Children {
+            obj,
+            used: vec![false; obj.children.len()],
+        }
+    }
+
+    /// The child named `name` (`<texture name="..">` or `<ref name=".." id=".."/>`).
+    pub fn named(&mut self, name: &str) -> Option<&'a Arc<Object>> {
+        let i = self
+            .obj
+            .children
+            .iter()
+            .position(|c| c.name.as_deref() == Some(name))?;
+        self.used[i] = true;
+        Some(&self.obj.children[i].object)
+    }
+
+    /// Every child with tag `tag` not yet taken, in document order.
+    pub fn with_tag(&mut self, tag: &str) -> Vec<&'a Arc<Object>> {
+        let mut v = Vec::new();
+        for (i, c) in self.obj.children.iter().enumerate() {
+            if !self.used[i] && c.object.tag == tag {
+                self.used[i] = true;
+                v.push(&c.object);
+            }
+        }
+        v
+    }
+
+    /// Fails on the first child that was not taken.
+    pub fn finish(self) -> Result<()> {
+        for (c, used) in self.obj.children.iter().zip(&self.used) {
+            if !used {
+                return Err(unexpected_child(self.obj, &c.object));
+            }
+        }
+        Ok(())
+    }
+}
+
+/// A parameter Mitsuba reads as a texture: a child texture named `name`, else a colour,
+/// float or spectrum property (converted for `role`); `None` if neither is given.
+pub(super) fn texture_param(
+    cx: &Ctx,
+    p: &mut Props,
+    ch: &mut Children,
+    name: &str,
+    role: ColorRole,
+) -> Result<Option<TextureDesc>> {
+    if let Some(t) = ch.named(name) {
+        return texture_desc(cx, t, role).map(Some);
+    }
+    match p.take(name) {
+        None => Ok(None),
+        Some((Value::Float(x), _)) => Ok(Some(TextureDesc::value(*x))),
+        Some((Value::Integer(i), _)) => Ok(Some(TextureDesc::value(*i as f64))),
+        Some(_) => {
+            // Put it back for `color`, which knows every colour form and its errors.
+            p.untake(name);
+            Ok(p.color(name, role)?.map(TextureDesc::rgb))
+        }
+    }
+}
+
+/// Like [`texture_param`] with a default, for parameters that always have a value.
+pub(super) fn texture_or(
+    cx: &Ctx,
+    p: &mut Props,
+    ch: &mut Children,
+    name: &str,
+    role: ColorRole,
+    default: TextureDesc,
+) -> Result<TextureDesc> {
+    Ok(texture_param(cx, p, ch, name, role)?.unwrap_or(default))
+}
+
+/// Mitsuba's `to_uv`: the 4x4 transform's upper-left 2x2 block and translation as a 2D
+/// affine map.
+fn to_uv(p: &mut Props) -> Result<DMat3> {
+    let m = p.transform("to_uv")?;
+    Ok(DMat3::from_cols(
+        glam::DVec3::new(m.x_axis.x, m.x_axis.y, 0.0),
+        glam::DVec3::new(m.y_axis.x, m.y_axis.y, 0.0),
+        glam::DVec3::new(m.w_axis.x, m.w_axis.y, 1.0),
+    ))
+}
+
+/// A `<texture>` object (nested, referenced, or declared at the scene level).
+pub(super) fn texture_desc(cx: &Ctx, o: &Object, role: ColorRole) -> Result<TextureDesc> {
+    if o.tag != "texture" {
+        return Err(Error::scene(
+            &o.location,
+            format!("{} is not a texture", describe(o)),
+        ));
+    }
+    let mut p = Props::new(o);
+    let mut ch = Children::new(o);
+    let t = match o.plugin.as_str() {
+        "bitmap" => {
+            let filename = file_parameter(cx, &mut p, o)?;
+            let raw = p.boolean("raw", false)?;
+            let bilinear =
+                match p.string("filter_type")? {
+                    None | Some(("bilinear", _)) => true,
+                    Some(("nearest", _)) => false,
+                    Some((s, loc)) => return Err(Error::scene(
+                        loc,
+                        format!(
+                            "invalid filter_type '{s}' of {}: must be \"bilinear\" or \"nearest\"",
+                            describe(o)
+                        ),
+                    )),
+                };
+            let wrap = match p.string("wrap_mode")? {
+                None | Some(("repeat", _)) => WrapMode::Repeat,
+                Some(("mirror", _)) => WrapMode::Mirror,
+                Some(("clamp", _)) => WrapMode::Clamp,
+                Some((s, loc)) => {
+                    return Err(Error::scene(
+                        loc,
+                        format!("invalid wrap_mode '{s}' of {}: must be \"repeat\", \"mirror\" or \"clamp\"", describe(o)),
+                    ))
+                }
+            };
+            // Mitsuba's storage options, which change nothing in an RGB render.
+            if let Some((f, loc)) = p.string("format")? {
+                if !matches!(f, "variant" | "fp16" | "fp32") {
+                    return Err(Error::scene(
+                        loc,
+                        format!(
+                            "invalid format '{f}' of {}: must be \"variant\", \"fp16\" or \"fp32\"",
+                            describe(o)
+                        ),
+                    ));
+                }
+            }
+            let _ = p.boolean("accel", true)?;
+            TextureDesc::Bitmap(BitmapDesc {
+                filename,
+                raw,
+                bilinear,
+                wrap,
+                to_uv: to_uv(&mut p)?,
+                location: o.location.clone(),
+            })
+        }
+        "checkerboard" => {
+            let color0 = texture_or(cx, &mut p, &mut ch, "color0", role, TextureDesc::value(0.4))?;
+            let color1 = texture_or(cx, &mut p, &mut ch, "color1", role, TextureDesc::value(0.2))?;
+            TextureDesc::Checkerboard {
+                color0: Box::new(color0),
+                color1: Box::new(color1),
+                to_uv: to_uv(&mut p)?,
+            }
+        }
+        "mesh_attribute" => {
+            let (name, loc) = p.string("name")?.ok_or_else(|| {
+                Error::scene(&o.location, format!("{} needs a 'name'", describe(o)))
+            })?;
+            if !(name.starts_with("vertex_") || name.starts_with("face_")) {
+                return Err(Error::scene(
+                    loc,
+                    format!("invalid mesh attribute name \"{name}\": it must start with \"vertex_\" or \"face_\""),
+                ));
+            }
+            let scale = p.float("scale", 1.0)?;
+            TextureDesc::MeshAttribute {
+                name: name.to_string(),
+                scale,
+            }
+        }
+        "rawconstant" => match p.take("value") {
+            Some((Value::Float(x), _)) => TextureDesc::Raw(DVec3::splat(*x)),
+            Some((Value::Integer(i), _)) => TextureDesc::Raw(DVec3::splat(*i as f64)),
+            Some((Value::Vector(v) | Value::Point(v) | Value::Rgb(v), _)) => TextureDesc::Raw(*v),
+            Some((v, loc)) => return Err(p.wrong_type("value", v, loc, "a float or a vector")),
+            None => {
+                return Err(Error::scene(
+                    &o.location,
+                    format!("{} needs a 'value'", describe(o)),
+                ))
+            }
+        },
+        "srgb" => {
+            let c = p.color("color", role)?.ok_or_else(|| {
+                Error::scene(&o.location, format!("{} needs a 'color'", describe(o)))
+            })?;
+            TextureDesc::rgb(c)
+        }
+        "uniform" => TextureDesc::value(p.float("value", 1.0)?),
+        _ => return Err(unsupported_plugin(o)),
+    };
+    cx.finish(p)?;
+    ch.finish()?;
+    Ok(t)
+}

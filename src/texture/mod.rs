@@ -1,0 +1,169 @@
+//! Textures: values that vary over a surface, looked up once per shading point and handed to
+//! the BSDFs as plain values (pbrt-v4's texture evaluation before `GetBxDF`; Mitsuba's
+//! `Texture::eval`, `eval_1`, `eval_3`, `mean`). A closed set, dispatched by `match`:
+//!
+//! | plugin | parameters (Mitsuba 3.9.1) | here |
+//! |---|---|---|
+//! | constant colours: `<rgb>`, `<float>`, `<spectrum>`, `rawconstant` | `value` | [`Texture::Constant`] |
+//! | `bitmap` | `filename`, `raw`, `filter_type`, `wrap_mode`, `to_uv` | [`bitmap::BitmapTexture`] |
+//! | `checkerboard` | `color0` (0.4), `color1` (0.2), `to_uv` | [`checkerboard::Checkerboard`] |
+//! | `mesh_attribute` | `name` (`vertex_*`, `face_*`), `scale` (1) | [`mesh_attribute::MeshAttributeTexture`] |
+//!
+//! Mitsuba's three lookups: `eval` is the colour (linear RGB), `eval_1` one value (the mean
+//! of a constant colour, a bitmap's own rule, the single channel of an attribute) for
+//! roughness, opacity, weights and heights, `eval_3` the raw three values (normal maps).
+//! Adding a texture: a file here with its struct, a variant of [`Texture`] and its arm in each
+//! method, a `TextureDesc` variant in `scene::description` and its arm in `scene::build`.
+
+pub mod checkerboard;
+pub mod mesh_attribute;
+
+pub use checkerboard::Checkerboard;
+pub use mesh_attribute::MeshAttributeTexture;
+
+use crate::bsdf::Spectrum;
+use crate::shape::Mesh;
+use glam::{DMat3, Vec2, Vec3};
+
+/// What a texture lookup needs of the shading point: the surface coordinates, and for mesh
+/// attributes the triangle, its barycentrics and the mesh.
+#[derive(Clone, Copy, Debug)]
+pub struct TextureContext<'a> {
+    pub uv: Vec2,
+    /// Triangle index within the mesh (0 for analytic shapes).
+    pub prim: u32,
+    /// Barycentrics (b1, b2) of the hit in its triangle (meshes only).
+    pub bary: Vec2,
+    /// The mesh hit, if it is one.
+    pub mesh: Option<&'a Mesh>,
+}
+
+impl TextureContext<'_> {
+    /// A context at surface coordinates `uv` with no mesh (for tests and constant lookups).
+    pub fn at_uv(uv: Vec2) -> Self {
+        TextureContext {
+            uv,
+            prim: 0,
+            bary: Vec2::ZERO,
+            mesh: None,
+        }
+    }
+}
+
+/// A texture, ready to be looked up.
+#[derive(Clone, Debug)]
+pub enum Texture {
+    /// The same value everywhere: `rgb` for `eval`, `scalar` for `eval_1` (Mitsuba: the value
+    /// of a `<float>`, the mean of an `<rgb>`), `raw` for `eval_3` (a `rawconstant`'s vector;
+    /// otherwise `rgb`).
+    Constant {
+        rgb: Spectrum,
+        scalar: f32,
+    },
+    Checkerboard(Box<Checkerboard>),
+    MeshAttribute(MeshAttributeTexture),
+}
+
+impl Texture {
+    /// A constant colour (Mitsuba's `srgb` texture: `eval_1` is the mean of the channels).
+    pub fn constant(rgb: Spectrum) -> Self {
+        Texture::Constant {
+            rgb,
+            scalar: (rgb.x + rgb.y + rgb.z) / 3.0,
+        }
+    }
+
+    /// The colour at the shading point (linear RGB).
+    #[inline]
+    pub fn eval(&self, ctx: &TextureContext) -> Spectrum {
+        match self {
+            Texture::Constant { rgb, .. } => *rgb,
+            Texture::Checkerboard(c) => c.eval(ctx),
+            Texture::MeshAttribute(a) => a.eval(ctx),
+        }
+    }
+
+    /// One value at the shading point (Mitsuba's `eval_1`).
+    #[inline]
+    pub fn eval_1(&self, ctx: &TextureContext) -> f32 {
+        match self {
+            Texture::Constant { scalar, .. } => *scalar,
+            Texture::Checkerboard(c) => c.eval_1(ctx),
+            Texture::MeshAttribute(a) => a.eval_1(ctx),
+        }
+    }
+
+    /// The raw three values at the shading point (Mitsuba's `eval_3`; normal maps).
+    #[inline]
+    pub fn eval_3(&self, ctx: &TextureContext) -> Vec3 {
+        match self {
+            Texture::Constant { rgb, .. } => *rgb,
+            Texture::Checkerboard(c) => c.eval(ctx),
+            Texture::MeshAttribute(a) => a.eval(ctx),
+        }
+    }
+
+    /// The gradient of `eval_1` with respect to (u, v) (Mitsuba's `eval_1_grad`, for bump
+    /// maps): a bitmap's bilinear slope; zero for constants, and zero almost everywhere for
+    /// a checkerboard or a face attribute (piecewise constant).
+    #[inline]
+    pub fn eval_1_grad(&self, _ctx: &TextureContext) -> Vec2 {
+        match self {
+            Texture::Constant { .. } | Texture::Checkerboard(_) | Texture::MeshAttribute(_) => {
+                Vec2::ZERO
+            }
+        }
+    }
+
+    /// The mean over the texture's domain (Mitsuba's `mean`).
+    pub fn mean(&self) -> f32 {
+        match self {
+            Texture::Constant { scalar, .. } => *scalar,
+            Texture::Checkerboard(c) => c.mean(),
+            // Mitsuba has no mean for an attribute; its constant scale is what is known.
+            Texture::MeshAttribute(a) => a.scale,
+        }
+    }
+
+    /// Whether the texture is one value everywhere (then a BSDF using only such textures can
+    /// be built once).
+    pub fn is_constant(&self) -> bool {
+        matches!(self, Texture::Constant { .. })
+    }
+}
+
+/// A 2D affine map of texture coordinates (Mitsuba's `to_uv`, a 3x3 matrix acting on
+/// (u, v, 1)).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct UvTransform {
+    m: [f32; 6],
+}
+
+impl UvTransform {
+    pub const IDENTITY: UvTransform = UvTransform {
+        m: [1.0, 0.0, 0.0, 0.0, 1.0, 0.0],
+    };
+
+    /// From a 3x3 homogeneous 2D matrix (the last row is assumed to be 0 0 1).
+    pub fn from_mat3(m: DMat3) -> Self {
+        UvTransform {
+            m: [
+                m.x_axis.x as f32,
+                m.y_axis.x as f32,
+                m.z_axis.x as f32,
+                m.x_axis.y as f32,
+                m.y_axis.y as f32,
+                m.z_axis.y as f32,
+            ],
+        }
+    }
+
+    #[inline]
+    pub fn apply(&self, uv: Vec2) -> Vec2 {
+        let m = &self.m;
+        Vec2::new(
+            m[0] * uv.x + m[1] * uv.y + m[2],
+            m[3] * uv.x + m[4] * uv.y + m[5],
+        )
+    }
+}
