@@ -10,6 +10,8 @@ pub mod fresnel;
 pub mod microfacet;
 pub mod plastic;
 pub mod presets;
+pub mod principled;
+pub mod principledthin;
 pub mod roughconductor;
 pub mod roughdielectric;
 pub mod roughplastic;
@@ -21,6 +23,8 @@ pub use dielectric::Dielectric;
 pub use diffuse::Diffuse;
 pub use microfacet::{Microfacet, MicrofacetType};
 pub use plastic::Plastic;
+pub use principled::{Principled, PrincipledParams};
+pub use principledthin::{PrincipledThin, PrincipledThinParams};
 pub use roughconductor::RoughConductor;
 pub use roughdielectric::RoughDielectric;
 pub use roughplastic::RoughPlastic;
@@ -78,6 +82,8 @@ pub enum Bsdf {
     RoughDielectric(RoughDielectric),
     Plastic(Plastic),
     RoughPlastic(RoughPlastic),
+    Principled(Principled),
+    PrincipledThin(PrincipledThin),
 }
 
 impl Bsdf {
@@ -93,6 +99,8 @@ impl Bsdf {
             Bsdf::RoughDielectric(b) => b.eval(wi, wo),
             Bsdf::Plastic(b) => b.eval(wi, wo),
             Bsdf::RoughPlastic(b) => b.eval(wi, wo),
+            Bsdf::Principled(b) => b.eval(wi, wo),
+            Bsdf::PrincipledThin(b) => b.eval(wi, wo),
         }
     }
 
@@ -108,6 +116,8 @@ impl Bsdf {
             Bsdf::RoughDielectric(b) => b.pdf(wi, wo),
             Bsdf::Plastic(b) => b.pdf(wi, wo),
             Bsdf::RoughPlastic(b) => b.pdf(wi, wo),
+            Bsdf::Principled(b) => b.pdf(wi, wo),
+            Bsdf::PrincipledThin(b) => b.pdf(wi, wo),
         }
     }
 
@@ -123,6 +133,8 @@ impl Bsdf {
             Bsdf::RoughDielectric(b) => b.sample(wi, u1, u2),
             Bsdf::Plastic(b) => b.sample(wi, u1, u2),
             Bsdf::RoughPlastic(b) => b.sample(wi, u1, u2),
+            Bsdf::Principled(b) => b.sample(wi, u1, u2),
+            Bsdf::PrincipledThin(b) => b.sample(wi, u1, u2),
         }
     }
 
@@ -135,6 +147,8 @@ impl Bsdf {
             Bsdf::Conductor(_) | Bsdf::Dielectric(_) | Bsdf::ThinDielectric(_) => false,
             Bsdf::RoughConductor(_) | Bsdf::Plastic(_) | Bsdf::RoughPlastic(_) => wi.z > 0.0,
             Bsdf::RoughDielectric(_) => true,
+            Bsdf::Principled(b) => b.has_smooth_lobe(wi),
+            Bsdf::PrincipledThin(b) => b.has_smooth_lobe(wi),
         }
     }
 
@@ -144,6 +158,8 @@ impl Bsdf {
         match self {
             Bsdf::Dielectric(_) | Bsdf::ThinDielectric(_) | Bsdf::RoughDielectric(_) => true,
             Bsdf::TwoSided(b) => b.front.is_transmissive() || b.back.is_transmissive(),
+            Bsdf::Principled(b) => b.is_transmissive(),
+            Bsdf::PrincipledThin(b) => b.is_transmissive(),
             _ => false,
         }
     }
