@@ -132,3 +132,169 @@ fn bsdfs_match_mitsuba_values() {
     );
     assert!(failures.is_empty(), "{failures:#?}");
 }
+
+/// The parameters of a `params` line of tests/data/mitsuba_principled_values.txt: the plugin,
+/// then key=value pairs (base_color as r,g,b) named as Mitsuba's and penumbra's fields.
+fn principled_from_params(line: &str) -> penumbra::bsdf::Bsdf {
+    use penumbra::bsdf::{
+        Bsdf, Principled, PrincipledParams, PrincipledThin, PrincipledThinParams,
+    };
+    let mut it = line.split_whitespace();
+    let plugin = it.next().unwrap();
+    let kv: Vec<(&str, &str)> = it.map(|s| s.split_once('=').unwrap()).collect();
+    let rgb = |v: &str| {
+        let c: Vec<f32> = v.split(',').map(|x| x.parse().unwrap()).collect();
+        Vec3::new(c[0], c[1], c[2])
+    };
+    match plugin {
+        "principled" => {
+            let mut p = PrincipledParams::default();
+            for (k, v) in kv {
+                if k == "base_color" {
+                    p.base_color = rgb(v);
+                    continue;
+                }
+                let x: f32 = v.parse().unwrap();
+                match k {
+                    "roughness" => p.roughness = x,
+                    "anisotropic" => p.anisotropic = x,
+                    "metallic" => p.metallic = x,
+                    "spec_trans" => (p.spec_trans, p.has_spec_trans) = (x, x != 0.0),
+                    "specular" => p.specular = x,
+                    "eta" => p.eta = Some(x),
+                    "spec_tint" => p.spec_tint = x,
+                    "sheen" => p.sheen = x,
+                    "sheen_tint" => p.sheen_tint = x,
+                    "flatness" => p.flatness = x,
+                    "clearcoat" => p.clearcoat = x,
+                    "clearcoat_gloss" => p.clearcoat_gloss = x,
+                    "diffuse_reflectance_sampling_rate" => p.diffuse_reflectance_sampling_rate = x,
+                    "main_specular_sampling_rate" => p.main_specular_sampling_rate = x,
+                    "clearcoat_sampling_rate" => p.clearcoat_sampling_rate = x,
+                    _ => panic!("unknown principled parameter {k}"),
+                }
+            }
+            Bsdf::Principled(Principled::new(p))
+        }
+        "principledthin" => {
+            let mut p = PrincipledThinParams::default();
+            for (k, v) in kv {
+                if k == "base_color" {
+                    p.base_color = rgb(v);
+                    continue;
+                }
+                let x: f32 = v.parse().unwrap();
+                match k {
+                    "roughness" => p.roughness = x,
+                    "anisotropic" => p.anisotropic = x,
+                    "spec_trans" => p.spec_trans = x,
+                    "diff_trans" => p.diff_trans = x,
+                    "eta" => p.eta = x,
+                    "spec_tint" => p.spec_tint = x,
+                    "sheen" => p.sheen = x,
+                    "sheen_tint" => p.sheen_tint = x,
+                    "flatness" => p.flatness = x,
+                    "specular_reflectance_sampling_rate" => {
+                        p.specular_reflectance_sampling_rate = x
+                    }
+                    "specular_transmittance_sampling_rate" => {
+                        p.specular_transmittance_sampling_rate = x
+                    }
+                    "diffuse_reflectance_sampling_rate" => p.diffuse_reflectance_sampling_rate = x,
+                    "diffuse_transmittance_sampling_rate" => {
+                        p.diffuse_transmittance_sampling_rate = x
+                    }
+                    _ => panic!("unknown principledthin parameter {k}"),
+                }
+            }
+            Bsdf::PrincipledThin(PrincipledThin::new(p))
+        }
+        _ => panic!("unknown plugin {plugin}"),
+    }
+}
+
+/// `principled` and `principledthin` against Mitsuba 3.9.1 (llvm_ad_rgb), from
+/// tests/data/mitsuba_principled_values.txt (validation/mitsuba/principled_values.py): eval
+/// and pdf at 80–110 direction pairs per parameter set, both sides of the surface.
+///
+/// Tolerance 2e-4 relative, with a floor of 1e-4 of the case's largest value: both renderers
+/// compute in f32, penumbra partly in f64 (Fresnel, D, Smith Λ); the largest differences
+/// come from 1 − F and (wi·h + η wo·h)² near grazing and from the clearcoat's GTR1 at
+/// α = 0.001–0.1 (ln α², 1 + (α² − 1) cos²θ), where Mitsuba's own scalar and vectorised
+/// variants differ by up to 4e-5.
+///
+/// One deliberate difference: seen from behind without transmission (bsdf = (1 − metallic)
+/// spec_trans = 0) Mitsuba's `pdf` returns the specular reflection density (NaN for η = 1)
+/// although its `sample` produces nothing there and `eval` is 0; penumbra's pdf is 0 there,
+/// the density of its sampler.
+#[test]
+fn principled_bsdfs_match_mitsuba_values() {
+    let text =
+        std::fs::read_to_string(repo_path("tests/data/mitsuba_principled_values.txt")).unwrap();
+    let mut cases: Vec<(String, String, Vec<[f32; 10]>)> = Vec::new();
+    for line in text.lines() {
+        if line.starts_with('#') || line.is_empty() {
+            continue;
+        }
+        let (tag, rest) = line.split_once(' ').unwrap();
+        match tag {
+            "case" => cases.push((rest.to_string(), String::new(), Vec::new())),
+            "xml" => {}
+            "params" => cases.last_mut().unwrap().1 = rest.to_string(),
+            "e" => {
+                let v: Vec<f32> = rest
+                    .split_whitespace()
+                    .map(|x| x.parse().unwrap())
+                    .collect();
+                cases.last_mut().unwrap().2.push(v.try_into().unwrap());
+            }
+            _ => panic!("bad line {line}"),
+        }
+    }
+    assert!(cases.len() >= 20);
+    let (tol_f, tol_p) = (2e-4, 2e-4);
+    let mut report = Vec::new();
+    let mut failures = Vec::new();
+    for (name, params, evals) in &cases {
+        let b = principled_from_params(params);
+        let scale = evals
+            .iter()
+            .map(|e| e[6].max(e[7]).max(e[8]))
+            .fold(0.0, f32::max);
+        let pscale = evals
+            .iter()
+            .map(|e| e[9])
+            .filter(|p| p.is_finite())
+            .fold(0.0, f32::max);
+        let (mut max_f, mut max_p, mut unreachable) = (0.0f32, 0.0f32, 0);
+        for e in evals {
+            let (wi, wo) = (v3(&e[0..3]), v3(&e[3..6]));
+            let (f_mi, p_mi) = (v3(&e[6..9]), e[9]);
+            let (f, p) = (b.eval(wi, wo), b.pdf(wi, wo));
+            for k in 0..3 {
+                max_f = max_f.max(rel(f[k], f_mi[k], 1e-4 * scale));
+            }
+            if wi.z < 0.0 && !b.has_smooth_lobe(wi) {
+                // Mitsuba's sampler is inactive there, its pdf is not
+                unreachable += 1;
+                if p != 0.0 || f != Vec3::ZERO {
+                    failures.push(format!("{name}: pdf {p} eval {f} from behind at {wi} {wo}"));
+                }
+                continue;
+            }
+            max_p = max_p.max(rel(p, p_mi, 1e-4 * pscale));
+        }
+        if max_f > tol_f || max_p > tol_p || !(max_f.is_finite() && max_p.is_finite()) {
+            failures.push(format!("{name}: eval {max_f:.2e} pdf {max_p:.2e}"));
+        }
+        report.push(format!(
+            "{name:36} eval {max_f:9.2e}  pdf {max_p:9.2e}  ({} pairs, {unreachable} from behind without transmission)",
+            evals.len()
+        ));
+    }
+    eprintln!(
+        "max relative difference to Mitsuba 3.9.1 (tolerance {tol_f:.0e}):\n{}",
+        report.join("\n")
+    );
+    assert!(failures.is_empty(), "{failures:#?}");
+}
