@@ -15,6 +15,10 @@
 //! - reciprocity of eval for the non-transmissive BSDFs; no NaN or Inf from eval, sample or
 //!   pdf at any direction, including cos θ down to 1e-7.
 //!
+//! - `principled` and `principledthin`, built from plain parameters: the same chi-square
+//!   tests (with their own Šidák correction), and no NaN or Inf at the edge directions.
+//!   (Their albedo may exceed 1: the Disney model does not conserve energy.)
+//!
 //! Every test is deterministic (fixed seeds).
 
 mod common;

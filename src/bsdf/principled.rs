@@ -378,15 +378,8 @@ impl Principled {
             }
         };
         let total = p.spec_reflect + p.spec_trans + p.clearcoat + p.diffuse;
-        if !(total > 0.0) {
-            return LobeProbabilities {
-                spec_reflect: 0.0,
-                spec_trans: 0.0,
-                clearcoat: 0.0,
-                diffuse: 0.0,
-            };
-        }
-        let inv = 1.0 / total;
+        // zero sampling rates: nothing is sampled
+        let inv = if total > 0.0 { 1.0 / total } else { 0.0 };
         LobeProbabilities {
             spec_reflect: p.spec_reflect * inv,
             spec_trans: p.spec_trans * inv,
