@@ -10,6 +10,8 @@ pub mod fresnel;
 pub mod microfacet;
 pub mod plastic;
 pub mod presets;
+pub mod principled;
+pub mod principledthin;
 pub mod roughconductor;
 pub mod roughdielectric;
 pub mod roughplastic;
@@ -20,6 +22,8 @@ pub use dielectric::Dielectric;
 pub use diffuse::Diffuse;
 pub use microfacet::{Microfacet, MicrofacetType};
 pub use plastic::Plastic;
+pub use principled::{Principled, PrincipledParams};
+pub use principledthin::{PrincipledThin, PrincipledThinParams};
 pub use roughconductor::RoughConductor;
 pub use roughdielectric::RoughDielectric;
 pub use roughplastic::RoughPlastic;
@@ -78,6 +82,8 @@ pub enum Bsdf {
     RoughDielectric(RoughDielectric),
     Plastic(Plastic),
     RoughPlastic(RoughPlastic),
+    Principled(Principled),
+    PrincipledThin(PrincipledThin),
 }
 
 impl Bsdf {
@@ -92,6 +98,8 @@ impl Bsdf {
             Bsdf::RoughDielectric(b) => b.eval(wi, wo),
             Bsdf::Plastic(b) => b.eval(wi, wo),
             Bsdf::RoughPlastic(b) => b.eval(wi, wo),
+            Bsdf::Principled(b) => b.eval(wi, wo),
+            Bsdf::PrincipledThin(b) => b.eval(wi, wo),
         }
     }
 
@@ -106,6 +114,8 @@ impl Bsdf {
             Bsdf::RoughDielectric(b) => b.pdf(wi, wo),
             Bsdf::Plastic(b) => b.pdf(wi, wo),
             Bsdf::RoughPlastic(b) => b.pdf(wi, wo),
+            Bsdf::Principled(b) => b.pdf(wi, wo),
+            Bsdf::PrincipledThin(b) => b.pdf(wi, wo),
         }
     }
 
@@ -120,6 +130,8 @@ impl Bsdf {
             Bsdf::RoughDielectric(b) => b.sample(wi, u1, u2),
             Bsdf::Plastic(b) => b.sample(wi, u1, u2),
             Bsdf::RoughPlastic(b) => b.sample(wi, u1, u2),
+            Bsdf::Principled(b) => b.sample(wi, u1, u2),
+            Bsdf::PrincipledThin(b) => b.sample(wi, u1, u2),
         }
     }
 
@@ -131,16 +143,20 @@ impl Bsdf {
             Bsdf::Conductor(_) | Bsdf::Dielectric(_) | Bsdf::ThinDielectric(_) => false,
             Bsdf::RoughConductor(_) | Bsdf::Plastic(_) | Bsdf::RoughPlastic(_) => wi.z > 0.0,
             Bsdf::RoughDielectric(_) => true,
+            Bsdf::Principled(b) => b.has_smooth_lobe(wi),
+            Bsdf::PrincipledThin(b) => b.has_smooth_lobe(wi),
         }
     }
 
     /// Whether the BSDF can transmit light to the other side (then reciprocity of `eval`
     /// does not hold in radiance mode, and albedos count transmission too).
     pub fn is_transmissive(&self) -> bool {
-        matches!(
-            self,
-            Bsdf::Dielectric(_) | Bsdf::ThinDielectric(_) | Bsdf::RoughDielectric(_)
-        )
+        match self {
+            Bsdf::Dielectric(_) | Bsdf::ThinDielectric(_) | Bsdf::RoughDielectric(_) => true,
+            Bsdf::Principled(b) => b.is_transmissive(),
+            Bsdf::PrincipledThin(b) => b.is_transmissive(),
+            _ => false,
+        }
     }
 
     /// Sets one parameter to a value looked up from a texture at the shading point (the

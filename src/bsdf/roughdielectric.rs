@@ -26,7 +26,7 @@ pub struct RoughDielectric {
 
 /// The microfacet normal of a direction pair, flipped to the upper hemisphere, and the
 /// relative IOR η_o / η_i (1 for reflection).
-fn half_vector(wi: Vec3, wo: Vec3, eta: f32) -> Option<(Vec3, f32, bool)> {
+pub(super) fn half_vector(wi: Vec3, wo: Vec3, eta: f32) -> Option<(Vec3, f32, bool)> {
     let (ci, co) = (wi.z, wo.z);
     if ci == 0.0 || co == 0.0 {
         return None;
