@@ -37,6 +37,12 @@
 
 use glam::DVec3;
 
+/// Mitsuba's luminance of a linear sRGB colour (its `luminance()` weights).
+#[inline]
+pub fn luminance(c: glam::Vec3) -> f32 {
+    0.212671 * c.x + 0.715160 * c.y + 0.072169 * c.z
+}
+
 /// How a plugin reads a colour parameter, which decides how a spectrum becomes RGB
 /// (Mitsuba's `Properties::get_texture`, `get_unbounded_texture`, `get_emissive_texture`).
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]

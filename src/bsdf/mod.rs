@@ -206,11 +206,37 @@ pub enum BsdfParam {
     K,
     AlphaU,
     AlphaV,
+    // `principled` and `principledthin` (see [`PrincipledParams::set`]).
+    BaseColor,
+    Roughness,
+    Anisotropic,
+    Metallic,
+    SpecTrans,
+    SpecTint,
+    Sheen,
+    SheenTint,
+    Flatness,
+    Clearcoat,
+    ClearcoatGloss,
+    /// `principledthin`'s `diff_trans`.
+    DiffTrans,
+    /// `principledthin`'s `eta` (one value, unlike a conductor's `eta`).
+    SheetEta,
 }
 
 impl BsdfParam {
     /// Whether the parameter is one value (looked up with `eval_1`).
     pub fn is_scalar(self) -> bool {
-        matches!(self, BsdfParam::AlphaU | BsdfParam::AlphaV)
+        use BsdfParam as P;
+        !matches!(
+            self,
+            P::Reflectance
+                | P::DiffuseReflectance
+                | P::SpecularReflectance
+                | P::SpecularTransmittance
+                | P::Eta
+                | P::K
+                | P::BaseColor
+        )
     }
 }

@@ -48,9 +48,9 @@
 use super::fresnel::{fresnel_dielectric, reflect, refract};
 use super::microfacet::{Microfacet, MicrofacetType};
 use super::roughdielectric::half_vector;
-use super::{BsdfSample, Spectrum};
-use crate::emitter::envmap::luminance;
+use super::{BsdfParam, BsdfSample, Spectrum};
 use crate::sampling::{square_to_cosine_hemisphere, square_to_cosine_hemisphere_pdf};
+use crate::spectrum::luminance;
 use glam::{Vec2, Vec3};
 use std::f32::consts::{FRAC_1_PI, PI};
 
@@ -107,6 +107,26 @@ impl Default for PrincipledParams {
 }
 
 impl PrincipledParams {
+    /// Sets a texture-driven parameter (`v.x` for the one-value ones); others are ignored.
+    #[inline]
+    pub fn set(&mut self, param: BsdfParam, v: Spectrum) {
+        use BsdfParam as P;
+        match param {
+            P::BaseColor => self.base_color = v,
+            P::Roughness => self.roughness = v.x,
+            P::Anisotropic => self.anisotropic = v.x,
+            P::Metallic => self.metallic = v.x,
+            P::SpecTrans => self.spec_trans = v.x,
+            P::SpecTint => self.spec_tint = v.x,
+            P::Sheen => self.sheen = v.x,
+            P::SheenTint => self.sheen_tint = v.x,
+            P::Flatness => self.flatness = v.x,
+            P::Clearcoat => self.clearcoat = v.x,
+            P::ClearcoatGloss => self.clearcoat_gloss = v.x,
+            _ => {}
+        }
+    }
+
     /// The relative IOR η Mitsuba uses: `eta`, or the one `specular` stands for.
     pub fn relative_ior(&self) -> f32 {
         let has_spec_trans = self.has_spec_trans || self.spec_trans != 0.0;

@@ -30,7 +30,7 @@ use super::principled::{
     disney_diffuse, disney_ggx, facet_sides_agree, schlick_r0, schlick_weight, schlick_weight_at,
     sheen_color, tint_color,
 };
-use super::{BsdfSample, Spectrum};
+use super::{BsdfParam, BsdfSample, Spectrum};
 use crate::sampling::{square_to_cosine_hemisphere, square_to_cosine_hemisphere_pdf};
 use glam::{Vec2, Vec3};
 use std::f32::consts::FRAC_1_PI;
@@ -55,6 +55,27 @@ pub struct PrincipledThinParams {
     pub specular_transmittance_sampling_rate: f32,
     pub diffuse_reflectance_sampling_rate: f32,
     pub diffuse_transmittance_sampling_rate: f32,
+}
+
+impl PrincipledThinParams {
+    /// Sets a texture-driven parameter (`v.x` for the one-value ones); others are ignored.
+    #[inline]
+    pub fn set(&mut self, param: BsdfParam, v: Spectrum) {
+        use BsdfParam as P;
+        match param {
+            P::BaseColor => self.base_color = v,
+            P::Roughness => self.roughness = v.x,
+            P::Anisotropic => self.anisotropic = v.x,
+            P::SpecTrans => self.spec_trans = v.x,
+            P::DiffTrans => self.diff_trans = v.x,
+            P::SheetEta => self.eta = v.x,
+            P::SpecTint => self.spec_tint = v.x,
+            P::Sheen => self.sheen = v.x,
+            P::SheenTint => self.sheen_tint = v.x,
+            P::Flatness => self.flatness = v.x,
+            _ => {}
+        }
+    }
 }
 
 impl Default for PrincipledThinParams {

@@ -19,10 +19,7 @@ use crate::sampling::Distribution2D;
 use glam::{Mat3, Vec2, Vec3};
 use std::f32::consts::PI;
 
-/// Mitsuba's luminance weights for linear sRGB.
-pub fn luminance(c: Spectrum) -> f32 {
-    0.212671 * c.x + 0.715160 * c.y + 0.072169 * c.z
-}
+pub use crate::spectrum::luminance;
 
 #[derive(Clone, Debug)]
 pub struct EnvMapEmitter {

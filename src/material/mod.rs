@@ -28,7 +28,9 @@ pub mod twosided;
 
 pub use shading::{Node, ShadingBsdf, MAX_NODES};
 
-use crate::bsdf::{Bsdf, BsdfParam};
+use crate::bsdf::{
+    Bsdf, BsdfParam, Principled, PrincipledParams, PrincipledThin, PrincipledThinParams,
+};
 use crate::geometry::Frame;
 use crate::texture::{Texture, TextureContext};
 use glam::Vec3;
@@ -41,6 +43,18 @@ pub enum Material {
     /// each shading point.
     Leaf {
         template: Bsdf,
+        textures: Vec<(BsdfParam, Texture)>,
+    },
+    /// Mitsuba's `principled` with textured parameters: its derived quantities (lobe weights,
+    /// roughness, η) depend on them, so the BSDF is made anew from `params` at each shading
+    /// point, as Mitsuba evaluates it. (Without textures it is a [`Material::Leaf`].)
+    Principled {
+        params: PrincipledParams,
+        textures: Vec<(BsdfParam, Texture)>,
+    },
+    /// Mitsuba's `principledthin` with textured parameters.
+    PrincipledThin {
+        params: PrincipledThinParams,
         textures: Vec<(BsdfParam, Texture)>,
     },
     /// Mitsuba's `twosided`: indices of the front and back materials (the same one twice when
@@ -91,7 +105,10 @@ impl Material {
                 return None;
             }
             let children: &[u32] = match m.get(i as usize)? {
-                Material::Leaf { .. } | Material::Null => &[],
+                Material::Leaf { .. }
+                | Material::Principled { .. }
+                | Material::PrincipledThin { .. }
+                | Material::Null => &[],
                 Material::TwoSided { front, back } => {
                     let f = count(m, *front, depth + 1)?;
                     let b = if back == front {
@@ -124,6 +141,16 @@ impl Material {
     }
 }
 
+/// A texture-driven parameter's value: the colour, or one value (`eval_1`) splatted.
+#[inline]
+fn lookup(param: BsdfParam, tex: &Texture, ctx: &ShadingContext) -> Vec3 {
+    if param.is_scalar() {
+        Vec3::splat(tex.eval_1(&ctx.tex))
+    } else {
+        tex.eval(&ctx.tex)
+    }
+}
+
 /// Appends the nodes of material `i` (and its children) to `out`; returns its node index.
 fn push(materials: &[Material], i: u32, ctx: &ShadingContext, out: &mut ShadingBsdf) -> u8 {
     let Some(m) = materials.get(i as usize) else {
@@ -133,14 +160,23 @@ fn push(materials: &[Material], i: u32, ctx: &ShadingContext, out: &mut ShadingB
         Material::Leaf { template, textures } => {
             let mut b = template.clone();
             for (param, tex) in textures {
-                let v = if param.is_scalar() {
-                    Vec3::splat(tex.eval_1(&ctx.tex))
-                } else {
-                    tex.eval(&ctx.tex)
-                };
-                b.set_param(*param, v);
+                b.set_param(*param, lookup(*param, tex, ctx));
             }
             out.push(Node::Leaf(b))
+        }
+        Material::Principled { params, textures } => {
+            let mut p = *params;
+            for (param, tex) in textures {
+                p.set(*param, lookup(*param, tex, ctx));
+            }
+            out.push(Node::Leaf(Bsdf::Principled(Principled::new(p))))
+        }
+        Material::PrincipledThin { params, textures } => {
+            let mut p = *params;
+            for (param, tex) in textures {
+                p.set(*param, lookup(*param, tex, ctx));
+            }
+            out.push(Node::Leaf(Bsdf::PrincipledThin(PrincipledThin::new(p))))
         }
         Material::Null => out.push(Node::Null),
         Material::TwoSided { front, back } => {

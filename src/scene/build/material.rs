@@ -6,11 +6,14 @@
 
 use crate::bsdf::{
     Bsdf, BsdfParam, Conductor, Dielectric, Diffuse, Microfacet, MicrofacetType, Plastic,
-    RoughConductor, RoughDielectric, RoughPlastic, ThinDielectric,
+    Principled, PrincipledParams, PrincipledThin, PrincipledThinParams, RoughConductor,
+    RoughDielectric, RoughPlastic, ThinDielectric,
 };
 use crate::error::{Error, Result};
 use crate::material::{Material, MAX_NODES};
-use crate::scene::description::{BsdfDesc, MicrofacetDesc, MicrofacetKind, TextureDesc};
+use crate::scene::description::{
+    BsdfDesc, MicrofacetDesc, MicrofacetKind, PrincipledDesc, TextureDesc,
+};
 use crate::texture::{Checkerboard, MeshAttributeTexture, Texture, UvTransform};
 use glam::Vec3;
 
@@ -79,6 +82,7 @@ impl MaterialBuilder {
                 use_shadowing_function: *use_shadowing_function,
             },
             BsdfDesc::Null => Material::Null,
+            BsdfDesc::Principled(p) => self.principled(p)?,
             leaf => self.leaf(leaf)?,
         })
     }
@@ -223,6 +227,69 @@ impl MaterialBuilder {
             _ => unreachable!("adapters are built by MaterialBuilder::build"),
         };
         Ok(Material::Leaf { template, textures })
+    }
+
+    /// `principled` / `principledthin`: a leaf when every parameter is constant, else the
+    /// parameters with their textures (the BSDF is made per shading point).
+    fn principled(&mut self, d: &PrincipledDesc) -> Result<Material> {
+        let mut textures = Vec::new();
+        let mut constants = Vec::new();
+        for (param, t) in &d.params {
+            let tex = self.texture(t)?;
+            match &tex {
+                Texture::Constant { rgb, scalar } => constants.push((
+                    *param,
+                    if param.is_scalar() {
+                        Vec3::splat(*scalar)
+                    } else {
+                        *rgb
+                    },
+                )),
+                _ => textures.push((*param, tex)),
+            }
+        }
+        let rate = |i: usize| d.sampling_rates.get(i).copied().unwrap_or(1.0) as f32;
+        if d.thin {
+            let mut params = PrincipledThinParams {
+                specular_reflectance_sampling_rate: rate(0),
+                specular_transmittance_sampling_rate: rate(1),
+                diffuse_reflectance_sampling_rate: rate(2),
+                diffuse_transmittance_sampling_rate: rate(3),
+                ..Default::default()
+            };
+            for (param, v) in constants {
+                params.set(param, v);
+            }
+            Ok(if textures.is_empty() {
+                Material::Leaf {
+                    template: Bsdf::PrincipledThin(PrincipledThin::new(params)),
+                    textures,
+                }
+            } else {
+                Material::PrincipledThin { params, textures }
+            })
+        } else {
+            let mut params = PrincipledParams {
+                has_spec_trans: d.has_spec_trans,
+                specular: d.specular as f32,
+                eta: d.eta.map(|e| e as f32),
+                diffuse_reflectance_sampling_rate: rate(0),
+                main_specular_sampling_rate: rate(1),
+                clearcoat_sampling_rate: rate(2),
+                ..Default::default()
+            };
+            for (param, v) in constants {
+                params.set(param, v);
+            }
+            Ok(if textures.is_empty() {
+                Material::Leaf {
+                    template: Bsdf::Principled(Principled::new(params)),
+                    textures,
+                }
+            } else {
+                Material::Principled { params, textures }
+            })
+        }
     }
 
     /// A texture from its description.

@@ -1,9 +1,10 @@
-//! BSDFs: `diffuse`, conductors, dielectrics, plastics, and Mitsuba's adapters (`twosided`,
-//! `mask`, `blendbsdf`, `normalmap`, `bumpmap`, `null`). Parameters Mitsuba reads as textures
-//! are [`TextureDesc`]s.
+//! BSDFs: `diffuse`, conductors, dielectrics, plastics, `principled`, `principledthin`, and
+//! Mitsuba's adapters (`twosided`, `mask`, `blendbsdf`, `normalmap`, `bumpmap`, `null`).
+//! Parameters Mitsuba reads as textures are [`TextureDesc`]s.
 
 use super::texture::{texture_desc, texture_or, texture_param, Children};
 use super::*;
+use crate::bsdf::BsdfParam;
 use crate::spectrum::ColorRole;
 
 #[derive(Clone, Debug, PartialEq)]
@@ -88,6 +89,26 @@ pub enum BsdfDesc {
     },
     /// `null`: no interaction, light passes straight through.
     Null,
+    /// `principled` or `principledthin`.
+    Principled(Box<PrincipledDesc>),
+}
+
+/// Mitsuba's `principled` (Disney) BSDF and its thin-sheet variant.
+#[derive(Clone, Debug, PartialEq)]
+pub struct PrincipledDesc {
+    /// `principledthin`.
+    pub thin: bool,
+    /// The texture parameters the scene gives (the others keep Mitsuba's defaults).
+    pub params: Vec<(BsdfParam, TextureDesc)>,
+    /// `principled`: `eta` if given, else the one `specular` stands for (not both).
+    pub eta: Option<f64>,
+    pub specular: f64,
+    /// `spec_trans` given as a texture or a float other than 0 (Mitsuba's `get_flag`).
+    pub has_spec_trans: bool,
+    /// Sampling rates: `principled`'s diffuse_reflectance, main_specular and clearcoat;
+    /// `principledthin`'s specular_reflectance, specular_transmittance, diffuse_reflectance
+    /// and diffuse_transmittance.
+    pub sampling_rates: Vec<f64>,
 }
 
 /// Microfacet distribution parameters shared by the rough BSDFs (Mitsuba's `distribution`,
@@ -394,11 +415,123 @@ pub(super) fn bsdf_desc(cx: &Ctx, o: &Arc<Object>) -> Result<BsdfDesc> {
             }
         }
         "null" => BsdfDesc::Null,
+        "principled" | "principledthin" => principled_desc(cx, &mut p, &mut ch, o)?,
         _ => return Err(unsupported_plugin(o)),
     };
     cx.finish(p)?;
     ch.finish()?;
     Ok(desc)
+}
+
+/// `principled` and `principledthin` (Mitsuba 3.9.1: every parameter but `eta`/`specular`
+/// and the sampling rates is a texture; `eta` is one for `principledthin`).
+fn principled_desc(cx: &Ctx, p: &mut Props, ch: &mut Children, o: &Object) -> Result<BsdfDesc> {
+    use BsdfParam as P;
+    let thin = o.plugin == "principledthin";
+    let refl = ColorRole::Reflectance;
+    let mut names: Vec<(&str, BsdfParam, ColorRole)> = vec![
+        ("base_color", P::BaseColor, refl),
+        ("roughness", P::Roughness, refl),
+        ("anisotropic", P::Anisotropic, refl),
+        ("spec_trans", P::SpecTrans, refl),
+        ("sheen", P::Sheen, refl),
+        ("sheen_tint", P::SheenTint, refl),
+        ("flatness", P::Flatness, refl),
+        ("spec_tint", P::SpecTint, refl),
+    ];
+    if thin {
+        names.extend([
+            ("eta", P::SheetEta, ColorRole::Unbounded),
+            ("diff_trans", P::DiffTrans, refl),
+        ]);
+    } else {
+        names.extend([
+            ("metallic", P::Metallic, refl),
+            ("clearcoat", P::Clearcoat, refl),
+            ("clearcoat_gloss", P::ClearcoatGloss, refl),
+        ]);
+    }
+    // Mitsuba's get_flag: given, and not a float equal to 0.
+    let has_spec_trans = match p.peek("spec_trans") {
+        Some(Value::Float(x)) => *x != 0.0,
+        Some(Value::Integer(i)) => *i != 0,
+        Some(_) => true,
+        None => ch.has("spec_trans"),
+    };
+    let mut params = Vec::new();
+    for (name, param, role) in names {
+        if let Some(t) = texture_param(cx, p, ch, name, role)? {
+            if let Some(v) = t.constant_rgb() {
+                if !v.is_finite() {
+                    return Err(Error::scene(
+                        &o.location,
+                        format!("{name} of {} must be finite", describe(o)),
+                    ));
+                }
+            }
+            params.push((param, t));
+        }
+    }
+    let (eta, specular) = if thin {
+        (None, 0.5)
+    } else {
+        let has = |n: &str| o.properties.iter().any(|q| q.name == n);
+        if has("eta") && has("specular") {
+            return Err(Error::scene(
+                &o.location,
+                format!("{}: give either 'eta' or 'specular', not both", describe(o)),
+            ));
+        }
+        let eta = if has("eta") {
+            Some(positive(p.float("eta", 1.5)?, "eta", o)?)
+        } else {
+            None
+        };
+        let specular = p.float("specular", 0.5)?;
+        if !(0.0..=1.0).contains(&specular) {
+            return Err(Error::scene(
+                &o.location,
+                format!(
+                    "specular of {} must lie in [0, 1], got {specular}",
+                    describe(o)
+                ),
+            ));
+        }
+        (eta, specular)
+    };
+    let rate_names: &[&str] = if thin {
+        &[
+            "specular_reflectance_sampling_rate",
+            "specular_transmittance_sampling_rate",
+            "diffuse_reflectance_sampling_rate",
+            "diffuse_transmittance_sampling_rate",
+        ]
+    } else {
+        &[
+            "diffuse_reflectance_sampling_rate",
+            "main_specular_sampling_rate",
+            "clearcoat_sampling_rate",
+        ]
+    };
+    let mut sampling_rates = Vec::new();
+    for name in rate_names {
+        let r = p.float(name, 1.0)?;
+        if !(r >= 0.0 && r.is_finite()) {
+            return Err(Error::scene(
+                &o.location,
+                format!("{name} of {} must be finite and >= 0, got {r}", describe(o)),
+            ));
+        }
+        sampling_rates.push(r);
+    }
+    Ok(BsdfDesc::Principled(Box::new(PrincipledDesc {
+        thin,
+        params,
+        eta,
+        specular,
+        has_spec_trans,
+        sampling_rates,
+    })))
 }
 
 /// An index of refraction given as a number or as one of Mitsuba's named presets.

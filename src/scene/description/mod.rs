@@ -113,6 +113,15 @@ impl<'a> Props<'a> {
         Some((&p.value, &p.location))
     }
 
+    /// The value of `name`, without marking it read.
+    pub(super) fn peek(&self, name: &str) -> Option<&'a Value> {
+        self.obj
+            .properties
+            .iter()
+            .find(|p| p.name == name)
+            .map(|p| &p.value)
+    }
+
     /// Marks `name` as unread again (a reader that looked at a property and leaves it to
     /// another one).
     pub(super) fn untake(&mut self, name: &str) {

@@ -116,6 +116,14 @@ impl<'a> Children<'a> {
         Some(&self.obj.children[i].object)
     }
 
+    /// Whether a child is named `name` (without taking it).
+    pub fn has(&self, name: &str) -> bool {
+        self.obj
+            .children
+            .iter()
+            .any(|c| c.name.as_deref() == Some(name))
+    }
+
     /// Every child with tag `tag` not yet taken, in document order.
     pub fn with_tag(&mut self, tag: &str) -> Vec<&'a Arc<Object>> {
         let mut v = Vec::new();
@@ -200,18 +208,19 @@ pub(super) fn texture_desc(cx: &Ctx, o: &Object, role: ColorRole) -> Result<Text
         "bitmap" => {
             let filename = file_parameter(cx, &mut p, o)?;
             let raw = p.boolean("raw", false)?;
-            let bilinear =
-                match p.string("filter_type")? {
-                    None | Some(("bilinear", _)) => true,
-                    Some(("nearest", _)) => false,
-                    Some((s, loc)) => return Err(Error::scene(
+            let bilinear = match p.string("filter_type")? {
+                None | Some(("bilinear", _)) => true,
+                Some(("nearest", _)) => false,
+                Some((s, loc)) => {
+                    return Err(Error::scene(
                         loc,
                         format!(
                             "invalid filter_type '{s}' of {}: must be \"bilinear\" or \"nearest\"",
                             describe(o)
                         ),
-                    )),
-                };
+                    ))
+                }
+            };
             let wrap = match p.string("wrap_mode")? {
                 None | Some(("repeat", _)) => WrapMode::Repeat,
                 Some(("mirror", _)) => WrapMode::Mirror,
