@@ -23,6 +23,7 @@ pub mod sampling;
 pub mod scene;
 pub mod shape;
 pub mod spectrum;
+pub mod texture;
 
 // The measurement side.
 pub mod study;
