@@ -207,7 +207,8 @@ impl TexImage {
         Ok(Self::from_image(image::decode(bytes)?, raw, format))
     }
 
-    /// Builds the texture data from a decoded image (1 or 3 channels, at least one texel).
+    /// Builds the texture data from a decoded image. Panics unless it has 1 or 3 channels, at
+    /// least one texel and `width * height * channels` samples, as [`image::decode`] ensures.
     pub fn from_image(image: Image, raw: bool, format: Format) -> Self {
         let Image {
             width,
@@ -217,6 +218,7 @@ impl TexImage {
             ..
         } = image;
         assert!(channels == 1 || channels == 3, "1 or 3 channels");
+        assert!(width > 0 && height > 0, "at least one texel");
         assert_eq!(samples.len(), width * height * channels);
         let srgb = samples.is_integer() && !raw;
         let storage = match format {
