@@ -478,7 +478,7 @@ fn decode_bmp(bytes: &[u8], max_pixels: u64) -> Result<Image, String> {
 
 /// Mitsuba's XYZ → linear sRGB matrix (`Bitmap::convert`).
 const XYZ_TO_RGB: [[f32; 3]; 3] = [
-    [3.240479, -1.537150, -0.498535],
+    [3.240479, -1.53715, -0.498535],
     [-0.969256, 1.875991, 0.041556],
     [0.055648, -0.204043, 1.057311],
 ];

@@ -608,6 +608,11 @@ mod tests {
         (sum32 / n as f32, sum64 / n as f64)
     }
 
+    /// (file, raw, format) of a loaded test image
+    type ImageKey = (String, bool, Format);
+    /// the image and its reference means (f32 sum, f64 sum)
+    type LoadedImage = (Arc<TexImage>, (f32, f64));
+
     /// Every lookup of validation/mitsuba/bitmap_lookups.py, and every mean.
     ///
     /// Tolerance 1e-6 x max(1, |value|) (about 8 f32 ulps at 1): penumbra decodes sRGB with
@@ -627,8 +632,7 @@ mod tests {
     fn agrees_with_mitsuba_lookups() {
         let cases = mitsuba_cases();
         assert!(cases.len() > 100);
-        let mut images: HashMap<(String, bool, Format), (Arc<TexImage>, (f32, f64))> =
-            HashMap::new();
+        let mut images: HashMap<ImageKey, LoadedImage> = HashMap::new();
         let mut checked = 0;
         for c in &cases {
             let (image, (f32_mean, f64_mean)) = images
