@@ -246,14 +246,32 @@ impl Distribution2D {
         })
     }
 
+    /// A cell (i, j) with probability proportional to its weight, and the sample reused
+    /// within it (uniform in [0,1)²); `None` only if a zero-weight row came up (never for
+    /// a valid distribution).
+    pub fn sample_cell(&self, u: Vec2) -> Option<(usize, usize, Vec2)> {
+        let (j, fy) = self.marginal.sample_reuse(u.y);
+        let (i, fx) = self.conditional[j].as_ref()?.sample_reuse(u.x);
+        Some((i, j, Vec2::new(fx, fy)))
+    }
+
+    /// The probability of cell (i, j) (0 outside the grid).
+    pub fn pmf(&self, i: usize, j: usize) -> f64 {
+        if i >= self.nu || j >= self.nv {
+            return 0.0;
+        }
+        match &self.conditional[j] {
+            Some(row) => self.marginal.pmf(j) * row.pmf(i),
+            None => 0.0,
+        }
+    }
+
     /// A continuous point in [0,1)² and its density w.r.t. area on [0,1]².
     pub fn sample(&self, u: Vec2) -> (Vec2, f32) {
-        let (j, fy) = self.marginal.sample_reuse(u.y);
-        let Some(row) = &self.conditional[j] else {
+        let Some((i, j, Vec2 { x: fx, y: fy })) = self.sample_cell(u) else {
             return (Vec2::ZERO, 0.0);
         };
-        let (i, fx) = row.sample_reuse(u.x);
-        let p = self.marginal.pmf(j) * row.pmf(i) * (self.nu * self.nv) as f64;
+        let p = self.pmf(i, j) * (self.nu * self.nv) as f64;
         let uv = Vec2::new(
             ((i as f32 + fx) / self.nu as f32).min(1.0 - f32::EPSILON / 2.0),
             ((j as f32 + fy) / self.nv as f32).min(1.0 - f32::EPSILON / 2.0),
@@ -265,9 +283,15 @@ impl Distribution2D {
     pub fn pdf(&self, uv: Vec2) -> f32 {
         let i = ((uv.x * self.nu as f32) as usize).min(self.nu - 1);
         let j = ((uv.y * self.nv as f32) as usize).min(self.nv - 1);
-        match &self.conditional[j] {
-            Some(row) => (self.marginal.pmf(j) * row.pmf(i) * (self.nu * self.nv) as f64) as f32,
-            None => 0.0,
+        (self.pmf(i, j) * (self.nu * self.nv) as f64) as f32
+    }
+
+    /// Sampling a tent on [−1, 1] (density 1 − |x|) from u ∈ [0, 1).
+    pub fn square_to_tent(u: f32) -> f32 {
+        if u < 0.5 {
+            (2.0 * u).sqrt() - 1.0
+        } else {
+            1.0 - (2.0 - 2.0 * u).max(0.0).sqrt()
         }
     }
 }

@@ -1,6 +1,7 @@
-//! File input and output: images, the mesh formats Mitsuba reads (PLY, serialized; OBJ goes
+//! File input and output: images (and texture images, [`image`]), the mesh formats Mitsuba reads (PLY, serialized; OBJ goes
 //! through tobj) and Mitsuba's `.vol` grid files.
 pub mod exr;
+pub mod image;
 pub mod mesh;
 pub mod ply;
 pub mod png;

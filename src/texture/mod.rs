@@ -15,9 +15,11 @@
 //! Adding a texture: a file here with its struct, a variant of [`Texture`] and its arm in each
 //! method, a `TextureDesc` variant in `scene::description` and its arm in `scene::build`.
 
+pub mod bitmap;
 pub mod checkerboard;
 pub mod mesh_attribute;
 
+pub use bitmap::BitmapTexture;
 pub use checkerboard::Checkerboard;
 pub use mesh_attribute::MeshAttributeTexture;
 
@@ -60,6 +62,7 @@ pub enum Texture {
         rgb: Spectrum,
         scalar: f32,
     },
+    Bitmap(BitmapTexture),
     Checkerboard(Box<Checkerboard>),
     MeshAttribute(MeshAttributeTexture),
 }
@@ -78,6 +81,7 @@ impl Texture {
     pub fn eval(&self, ctx: &TextureContext) -> Spectrum {
         match self {
             Texture::Constant { rgb, .. } => *rgb,
+            Texture::Bitmap(b) => b.eval(ctx.uv),
             Texture::Checkerboard(c) => c.eval(ctx),
             Texture::MeshAttribute(a) => a.eval(ctx),
         }
@@ -88,6 +92,7 @@ impl Texture {
     pub fn eval_1(&self, ctx: &TextureContext) -> f32 {
         match self {
             Texture::Constant { scalar, .. } => *scalar,
+            Texture::Bitmap(b) => b.eval_1(ctx.uv),
             Texture::Checkerboard(c) => c.eval_1(ctx),
             Texture::MeshAttribute(a) => a.eval_1(ctx),
         }
@@ -98,6 +103,7 @@ impl Texture {
     pub fn eval_3(&self, ctx: &TextureContext) -> Vec3 {
         match self {
             Texture::Constant { rgb, .. } => *rgb,
+            Texture::Bitmap(b) => b.eval(ctx.uv),
             Texture::Checkerboard(c) => c.eval(ctx),
             Texture::MeshAttribute(a) => a.eval(ctx),
         }
@@ -107,8 +113,9 @@ impl Texture {
     /// maps): a bitmap's bilinear slope; zero for constants, and zero almost everywhere for
     /// a checkerboard or a face attribute (piecewise constant).
     #[inline]
-    pub fn eval_1_grad(&self, _ctx: &TextureContext) -> Vec2 {
+    pub fn eval_1_grad(&self, ctx: &TextureContext) -> Vec2 {
         match self {
+            Texture::Bitmap(b) => b.eval_1_grad(ctx.uv),
             Texture::Constant { .. } | Texture::Checkerboard(_) | Texture::MeshAttribute(_) => {
                 Vec2::ZERO
             }
@@ -119,6 +126,7 @@ impl Texture {
     pub fn mean(&self) -> f32 {
         match self {
             Texture::Constant { scalar, .. } => *scalar,
+            Texture::Bitmap(b) => b.mean(),
             Texture::Checkerboard(c) => c.mean(),
             // Mitsuba has no mean for an attribute; its constant scale is what is known.
             Texture::MeshAttribute(a) => a.scale,
@@ -129,6 +137,24 @@ impl Texture {
     /// be built once).
     pub fn is_constant(&self) -> bool {
         matches!(self, Texture::Constant { .. })
+    }
+
+    /// A point of the texture's [0, 1]² drawn in proportion to its values, and its density
+    /// (Mitsuba's `sample_position`: textured emitters). Only bitmaps prepared with
+    /// [`BitmapTexture::prepare_sampling`] do better than uniform.
+    pub fn sample_position(&self, u: Vec2) -> (Vec2, f32) {
+        match self {
+            Texture::Bitmap(b) => b.sample_position(u),
+            _ => (u, 1.0),
+        }
+    }
+
+    /// The density of [`Texture::sample_position`] at `uv`.
+    pub fn pdf_position(&self, uv: Vec2) -> f32 {
+        match self {
+            Texture::Bitmap(b) => b.pdf_position(uv),
+            _ => 1.0,
+        }
     }
 }
 

@@ -14,8 +14,11 @@ use crate::material::{Material, MAX_NODES};
 use crate::scene::description::{
     BsdfDesc, MicrofacetDesc, MicrofacetKind, PrincipledDesc, TextureDesc,
 };
+use crate::texture::bitmap::{BitmapTexture, Format, TexImage};
 use crate::texture::{Checkerboard, MeshAttributeTexture, Texture, UvTransform};
 use glam::Vec3;
+use std::path::PathBuf;
+use std::sync::Arc;
 
 /// Builds the scene's material list.
 #[derive(Default)]
@@ -23,6 +26,9 @@ pub struct MaterialBuilder {
     pub materials: Vec<Material>,
     /// Descriptions already built, with their material index.
     built: Vec<(BsdfDesc, u32)>,
+    /// Bitmaps already loaded, by file, `raw` and storage format: an image shared by
+    /// several textures (or emitters) is read and stored once.
+    images: Vec<((PathBuf, bool, Format), Arc<TexImage>)>,
 }
 
 impl MaterialBuilder {
@@ -319,10 +325,18 @@ impl MaterialBuilder {
                 })
             }
             TextureDesc::Bitmap(b) => {
-                return Err(Error::scene(
-                    &b.location,
-                    "bitmap textures are not wired in yet",
-                ))
+                let key = (b.filename.clone(), b.raw, b.format);
+                let image = match self.images.iter().find(|(k, _)| *k == key) {
+                    Some((_, img)) => img.clone(),
+                    None => {
+                        let img = TexImage::load_with_format(&b.filename, b.raw, b.format)
+                            .map_err(|e| Error::scene(&b.location, e))?;
+                        let img = Arc::new(img);
+                        self.images.push((key, img.clone()));
+                        img
+                    }
+                };
+                Texture::Bitmap(BitmapTexture::new(image, b.filter, b.wrap, b.to_uv))
             }
         })
     }

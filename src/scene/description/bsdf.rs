@@ -128,6 +128,97 @@ pub enum MicrofacetKind {
 }
 
 impl BsdfDesc {
+    /// The image files the BSDF's textures (and those of the BSDFs it nests) read.
+    pub fn files<'a>(&'a self, out: &mut Vec<&'a Path>) {
+        let mut tex = |t: &'a TextureDesc| t.files(out);
+        match self {
+            BsdfDesc::Diffuse { reflectance } => tex(reflectance),
+            BsdfDesc::Conductor {
+                eta,
+                k,
+                specular_reflectance,
+            } => {
+                tex(eta);
+                tex(k);
+                tex(specular_reflectance);
+            }
+            BsdfDesc::RoughConductor {
+                distribution,
+                eta,
+                k,
+                specular_reflectance,
+            } => {
+                tex(&distribution.alpha_u);
+                tex(&distribution.alpha_v);
+                tex(eta);
+                tex(k);
+                tex(specular_reflectance);
+            }
+            BsdfDesc::Dielectric {
+                specular_reflectance,
+                specular_transmittance,
+                ..
+            }
+            | BsdfDesc::ThinDielectric {
+                specular_reflectance,
+                specular_transmittance,
+                ..
+            } => {
+                tex(specular_reflectance);
+                tex(specular_transmittance);
+            }
+            BsdfDesc::RoughDielectric {
+                distribution,
+                specular_reflectance,
+                specular_transmittance,
+                ..
+            } => {
+                tex(&distribution.alpha_u);
+                tex(&distribution.alpha_v);
+                tex(specular_reflectance);
+                tex(specular_transmittance);
+            }
+            BsdfDesc::Plastic {
+                diffuse_reflectance,
+                specular_reflectance,
+                ..
+            }
+            | BsdfDesc::RoughPlastic {
+                diffuse_reflectance,
+                specular_reflectance,
+                ..
+            } => {
+                tex(diffuse_reflectance);
+                tex(specular_reflectance);
+            }
+            BsdfDesc::Principled(p) => p.params.iter().for_each(|(_, t)| tex(t)),
+            BsdfDesc::Null => {}
+            BsdfDesc::TwoSided { front, back } => {
+                front.files(out);
+                back.files(out);
+            }
+            BsdfDesc::Mask { opacity, nested } => {
+                opacity.files(out);
+                nested.files(out);
+            }
+            BsdfDesc::Blend { weight, nested } => {
+                weight.files(out);
+                nested[0].files(out);
+                nested[1].files(out);
+            }
+            BsdfDesc::NormalMap {
+                normalmap, nested, ..
+            } => {
+                normalmap.files(out);
+                nested.files(out);
+            }
+            BsdfDesc::BumpMap { height, nested, .. } => {
+                height.files(out);
+                nested.files(out);
+            }
+        }
+    }
+
     /// Mitsuba's default for a shape without a BSDF: diffuse with reflectance 0.5.
     pub fn default_diffuse() -> Self {
         BsdfDesc::Diffuse {

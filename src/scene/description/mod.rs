@@ -21,7 +21,7 @@ pub use emitter::*;
 pub use integrator::*;
 pub use sensor::*;
 pub use shape::*;
-pub use texture::{BitmapDesc, TextureDesc, WrapMode};
+pub use texture::{BitmapDesc, TextureDesc};
 
 use super::resolver::FileResolver;
 use super::xml::{Child, Document, Object, Value};
@@ -70,6 +70,15 @@ impl SceneDescription {
             EmitterDesc::EnvMap { filename, .. } => Some(filename.as_path()),
             _ => None,
         }));
+        let shapes = self
+            .shapes
+            .iter()
+            .chain(self.shape_groups.iter().flat_map(|g| g.shapes.iter()));
+        for s in shapes {
+            s.bsdf.files(&mut files);
+        }
+        files.sort();
+        files.dedup();
         files
     }
 }

@@ -4,6 +4,7 @@
 
 use super::*;
 use crate::spectrum::ColorRole;
+use crate::texture::bitmap::{to_uv_from_4x4, Filter, Format, Wrap};
 use glam::DMat3;
 
 #[derive(Clone, Debug, PartialEq)]
@@ -34,21 +35,16 @@ pub struct BitmapDesc {
     pub filename: PathBuf,
     /// `raw`: keep 8/16-bit values as stored (no sRGB decoding).
     pub raw: bool,
-    /// `filter_type`: bilinear (true, the default) or nearest.
-    pub bilinear: bool,
-    pub wrap: WrapMode,
+    /// `filter_type`.
+    pub filter: Filter,
+    /// `wrap_mode`.
+    pub wrap: Wrap,
+    /// `format`: how the texels are stored (which decides where sRGB is decoded).
+    pub format: Format,
     /// `to_uv` as a 2D affine map (Mitsuba takes the upper-left 2x2 block and the
     /// translation of the 4x4 transform).
     pub to_uv: DMat3,
     pub location: Location,
-}
-
-/// Mitsuba's `wrap_mode`.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub enum WrapMode {
-    Repeat,
-    Mirror,
-    Clamp,
 }
 
 impl TextureDesc {
@@ -77,6 +73,18 @@ impl TextureDesc {
             TextureDesc::Constant { rgb, .. } => Some(*rgb),
             TextureDesc::Raw(v) => Some(*v),
             _ => None,
+        }
+    }
+
+    /// The image files the texture reads.
+    pub fn files<'a>(&'a self, out: &mut Vec<&'a Path>) {
+        match self {
+            TextureDesc::Bitmap(b) => out.push(&b.filename),
+            TextureDesc::Checkerboard { color0, color1, .. } => {
+                color0.files(out);
+                color1.files(out);
+            }
+            _ => {}
         }
     }
 
@@ -186,12 +194,20 @@ pub(super) fn texture_or(
 /// Mitsuba's `to_uv`: the 4x4 transform's upper-left 2x2 block and translation as a 2D
 /// affine map.
 fn to_uv(p: &mut Props) -> Result<DMat3> {
-    let m = p.transform("to_uv")?;
-    Ok(DMat3::from_cols(
-        glam::DVec3::new(m.x_axis.x, m.x_axis.y, 0.0),
-        glam::DVec3::new(m.y_axis.x, m.y_axis.y, 0.0),
-        glam::DVec3::new(m.w_axis.x, m.w_axis.y, 1.0),
-    ))
+    Ok(to_uv_from_4x4(&p.transform("to_uv")?))
+}
+
+/// A string option read with a plugin's own parser (`from_name`), its error located.
+fn option<T: Default>(
+    p: &mut Props,
+    o: &Object,
+    name: &str,
+    parse: fn(&str) -> std::result::Result<T, String>,
+) -> Result<T> {
+    match p.string(name)? {
+        None => Ok(T::default()),
+        Some((s, loc)) => parse(s).map_err(|e| Error::scene(loc, format!("{e} ({})", describe(o)))),
+    }
 }
 
 /// A `<texture>` object (nested, referenced, or declared at the scene level).
@@ -208,48 +224,17 @@ pub(super) fn texture_desc(cx: &Ctx, o: &Object, role: ColorRole) -> Result<Text
         "bitmap" => {
             let filename = file_parameter(cx, &mut p, o)?;
             let raw = p.boolean("raw", false)?;
-            let bilinear = match p.string("filter_type")? {
-                None | Some(("bilinear", _)) => true,
-                Some(("nearest", _)) => false,
-                Some((s, loc)) => {
-                    return Err(Error::scene(
-                        loc,
-                        format!(
-                            "invalid filter_type '{s}' of {}: must be \"bilinear\" or \"nearest\"",
-                            describe(o)
-                        ),
-                    ))
-                }
-            };
-            let wrap = match p.string("wrap_mode")? {
-                None | Some(("repeat", _)) => WrapMode::Repeat,
-                Some(("mirror", _)) => WrapMode::Mirror,
-                Some(("clamp", _)) => WrapMode::Clamp,
-                Some((s, loc)) => {
-                    return Err(Error::scene(
-                        loc,
-                        format!("invalid wrap_mode '{s}' of {}: must be \"repeat\", \"mirror\" or \"clamp\"", describe(o)),
-                    ))
-                }
-            };
-            // Mitsuba's storage options, which change nothing in an RGB render.
-            if let Some((f, loc)) = p.string("format")? {
-                if !matches!(f, "variant" | "fp16" | "fp32") {
-                    return Err(Error::scene(
-                        loc,
-                        format!(
-                            "invalid format '{f}' of {}: must be \"variant\", \"fp16\" or \"fp32\"",
-                            describe(o)
-                        ),
-                    ));
-                }
-            }
+            let filter = option(&mut p, o, "filter_type", Filter::from_name)?;
+            let wrap = option(&mut p, o, "wrap_mode", Wrap::from_name)?;
+            let format = option(&mut p, o, "format", Format::from_name)?;
+            // Mitsuba's GPU texture hardware switch: nothing to do on a CPU.
             let _ = p.boolean("accel", true)?;
             TextureDesc::Bitmap(BitmapDesc {
                 filename,
                 raw,
-                bilinear,
+                filter,
                 wrap,
+                format,
                 to_uv: to_uv(&mut p)?,
                 location: o.location.clone(),
             })
