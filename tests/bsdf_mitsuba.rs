@@ -107,9 +107,9 @@ fn bsdfs_match_mitsuba_values() {
         // G1 where Mitsuba uses Walter's approximation (within 0.4%); plastic's Fdr by
         // quadrature where Mitsuba uses a polynomial fit (~1e-3); roughplastic's tables by
         // stratified sampling where Mitsuba uses its own quadrature (~5e-3 at grazing).
-        let (tol_f, tol_p) = if c.name.starts_with("roughplastic") {
+        let (tol_f, tol_p) = if c.xml.contains("\"roughplastic\"") {
             (1e-2, 1e-2)
-        } else if c.name.starts_with("plastic") {
+        } else if c.xml.contains("\"plastic\"") {
             (2e-3, 1e-5)
         } else if c.xml.contains("roughdielectric") || c.xml.contains("roughconductor") {
             let beckmann = !c.xml.contains("ggx") && !c.xml.contains("sample_visible");

@@ -545,13 +545,13 @@ fn sphere_scene(property: &str) -> String {
 #[test]
 fn unknown_plugin() {
     let dir = TempDir::new("plugin");
-    let scene = dir.write("scene.xml", &sphere_scene(r#"<bsdf type="principled"/>"#));
+    let scene = dir.write("scene.xml", &sphere_scene(r#"<bsdf type="hair"/>"#));
     let out = render_fails(&dir, &scene, &[]);
     assert_error(
         &out,
         &[
             &format!("{}:14:", scene.display()),
-            "unsupported plugin <bsdf type=\"principled\">",
+            "unsupported plugin <bsdf type=\"hair\">",
         ],
     );
 }

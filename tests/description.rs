@@ -1370,7 +1370,7 @@ fn area_emitter_radiance() {
     assert_eq!(
         s.emitter,
         Some(EmitterDesc::Area {
-            radiance: DVec3::new(18.387, 13.9873, 6.75357)
+            radiance: TextureDesc::rgb(DVec3::new(18.387, 13.9873, 6.75357))
         })
     );
     // Mitsuba gives an emitter without a BSDF a black diffuse one.
@@ -1389,7 +1389,7 @@ fn area_emitter_radiance() {
     assert_eq!(
         s.emitter,
         Some(EmitterDesc::Area {
-            radiance: DVec3::splat(3.0)
+            radiance: TextureDesc::value(3.0)
         })
     );
     assert_eq!(
@@ -1448,11 +1448,11 @@ fn area_emitter_errors() {
 #[test]
 fn unknown_emitters_fail() {
     // An emitter type outside the supported subset.
-    let xml = with_sensor(r#"<emitter type="projector"/>"#);
+    let xml = with_sensor(r#"<emitter type="irradiancemeter"/>"#);
     assert_error(
         &xml,
         "<emitter",
-        &["unsupported plugin <emitter type=\"projector\">"],
+        &["unsupported plugin <emitter type=\"irradiancemeter\">"],
     );
     // An area emitter at the scene level emits only through a shape that refers to it
     // (Mitsuba ignores it otherwise): a warning, not an error.
@@ -1499,7 +1499,8 @@ fn scene_level_emitters_and_their_defaults() {
                 to_world: DMat4::IDENTITY,
                 intensity: DVec3::ONE,
                 cutoff_angle: 20.0,
-                beam_width: 15.0
+                beam_width: 15.0,
+                texture: None
             },
             EmitterDesc::Directional {
                 direction: DVec3::new(0.0, -1.0, 0.0),
@@ -1799,12 +1800,12 @@ fn spectra_take_the_role_of_their_parameter() {
         Some(EmitterDesc::Area { radiance }) => {
             // 0.5 · xyz_to_srgb(1, 1, 1), the f32 values Mitsuba stores.
             assert!(
-                close(
-                    *radiance,
+                radiance.constant_rgb().is_some_and(|c| close(
+                    c,
                     DVec3::new(0.602396965, 0.474145502, 0.454458028),
                     1e-7
-                ),
-                "{radiance}"
+                )),
+                "{radiance:?}"
             );
         }
         other => panic!("{other:?}"),

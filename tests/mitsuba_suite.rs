@@ -4,34 +4,31 @@
 //! pixel-channels passing.
 //!
 //! Every scene of the suite is run and reported (pass, fail, or the first unsupported
-//! construct, printed with `--nocapture`). The scenes penumbra passes are listed in [`PASSING`]
-//! and asserted to pass, so nothing regresses; a scene that cannot be loaded must fail with a
-//! single line naming what penumbra does not support.
+//! construct, printed with `--nocapture`). Every surface scene must pass: all but the
+//! participating-media scenes and the particle tracer's (listed in [`NOT_YET`], which need
+//! volumetric path tracing and light tracing); those must fail to load with a single line
+//! naming what penumbra does not support.
 
 use penumbra::study::suite::{self, Outcome};
 use std::path::Path;
 
-/// Scenes that pass Mitsuba's test today.
-const PASSING: &[&str] = &[
-    "bsdf_spheres/test_roughdielectric_path",
-    "bsdf_spheres/test_roughplastic_linear_path",
-    "bsdf_spheres/test_roughplastic_nonlinear_path",
-    "floating_sphere/test_directional_direct",
-    "infinite_mirrors/scene_path",
-    "instancing/test_instancing_path",
+/// Scenes penumbra cannot render yet: scene-name prefixes.
+const NOT_YET: &[&str] = &[
+    "participating_media/",
+    "various_emitters/test_various_emitters_ptracer",
 ];
+
+fn expected_to_pass(name: &str) -> bool {
+    !NOT_YET.iter().any(|p| name.starts_with(p))
+}
 
 #[test]
 fn mitsuba_regression_suite() {
     let root = Path::new(env!("CARGO_MANIFEST_DIR")).join("validation/mitsuba-suite");
     let scenes = suite::discover(&root).expect("the suite is in the repository");
     assert_eq!(scenes.len(), 41, "Mitsuba's suite has 41 scenes");
-    for name in PASSING {
-        assert!(
-            scenes.iter().any(|s| s.name == *name),
-            "{name} is not a scene of the suite"
-        );
-    }
+    let surface = scenes.iter().filter(|s| expected_to_pass(&s.name)).count();
+    assert_eq!(surface, 28, "the suite has 28 surface scenes");
     let mut failures = Vec::new();
     for s in &scenes {
         match suite::run(s, None) {
@@ -43,7 +40,7 @@ fn mitsuba_regression_suite() {
                     j.spp,
                     j.seconds
                 );
-                if PASSING.contains(&s.name.as_str()) && !j.passed {
+                if expected_to_pass(&s.name) && !j.passed {
                     failures.push(format!(
                         "{} fails Mitsuba's test: {:.2}% of pixel-channels pass",
                         s.name,
@@ -53,7 +50,7 @@ fn mitsuba_regression_suite() {
             }
             Outcome::Unsupported(e) => {
                 println!("{:<62} unsupported: {e}", s.name);
-                if PASSING.contains(&s.name.as_str()) {
+                if expected_to_pass(&s.name) {
                     failures.push(format!("{} no longer loads: {e}", s.name));
                 }
                 if e.contains('\n') || e.is_empty() {

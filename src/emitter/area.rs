@@ -1,23 +1,33 @@
-//! Mitsuba's `area` emitter: constant radiance leaving one side of a shape, the side its
-//! (shading) normal points to. Sampled by choosing a point uniformly by area on the shape and
+//! Mitsuba's `area` emitter: radiance leaving one side of a shape, the side its (shading)
+//! normal points to.
+//!
+//! A constant radiance is sampled by choosing a point uniformly by area on the shape and
 //! converting the area density to solid angle, p_ω = p_A r² / |cos θ_light| (Veach 1997, eq.
 //! 8.10) — except on spheres seen from outside, which are sampled uniformly within the cone
 //! of directions they subtend, p_ω = 1 / (2π (1 − cos θmax)) with sin θmax = r / |c − p|
 //! (Shirley, Wang and Zimmerman 1996, "Monte Carlo techniques for direct lighting
 //! calculations"; pbrt-v4 §6.2.4), as Mitsuba does.
+//!
+//! A textured radiance (a bitmap) is sampled as Mitsuba does: a texture coordinate drawn in
+//! proportion to the texels ([`Texture::sample_position`]), mapped onto the shape
+//! ([`ShapeGeometry::at_uv`]), p_A = p_uv / |∂p/∂u × ∂p/∂v|, with the geometric normal for the
+//! solid-angle conversion.
 
 use super::DirectionSample;
 use crate::bsdf::Spectrum;
 use crate::geometry::Frame;
 use crate::sampling::square_to_uniform_cone;
-use crate::shape::{Shape, ShapeGeometry, Sphere, SurfaceInteraction};
+use crate::shape::{Shape, ShapeGeometry, Sphere, SurfaceInteraction, UvGrid};
+use crate::texture::{Texture, TextureContext};
 use glam::{DVec3, Vec2, Vec3};
 
 #[derive(Clone, Debug)]
 pub struct AreaEmitter {
     /// Index of the shape this emitter is attached to.
     pub shape: u32,
-    pub radiance: Spectrum,
+    pub radiance: Texture,
+    /// For a textured radiance on a mesh: where each uv lies on it.
+    pub uv_grid: Option<UvGrid>,
 }
 
 /// The cone a sphere subtends from `p_ref`: (unit axis towards the centre, distance to the
@@ -40,15 +50,56 @@ fn sphere_cone(s: &Sphere, p_ref: Vec3) -> Option<(DVec3, f64, f64, f64)> {
     Some((v / dc, dc, cos_max, one_minus))
 }
 
+/// The radiance texture's lookup context at `si` on `geometry`.
+fn texture_context<'a>(si: &SurfaceInteraction, geometry: &'a ShapeGeometry) -> TextureContext<'a> {
+    TextureContext {
+        uv: si.uv,
+        prim: si.prim,
+        bary: si.bary,
+        mesh: match geometry {
+            ShapeGeometry::Mesh(m) => Some(m),
+            _ => None,
+        },
+    }
+}
+
 impl AreaEmitter {
+    /// An area emitter on shape `shape` (of `shapes`): a textured radiance on a mesh needs
+    /// its texture coordinates (`None` without them).
+    pub fn new(shape: u32, radiance: Texture, shapes: &[Shape]) -> Option<Self> {
+        let uv_grid = match (
+            &shapes.get(shape as usize)?.geometry,
+            radiance.is_constant(),
+        ) {
+            (ShapeGeometry::Mesh(m), false) => Some(UvGrid::new(m)?),
+            (ShapeGeometry::SdfGrid(_), false) => return None,
+            _ => None,
+        };
+        Some(AreaEmitter {
+            shape,
+            radiance,
+            uv_grid,
+        })
+    }
+
     /// Radiance leaving the surface at `si` in direction `w` (world, pointing away from the
     /// surface).
     #[inline]
-    pub fn eval(&self, si: &SurfaceInteraction, w: Vec3) -> Spectrum {
-        if si.frame.n.dot(w) > 0.0 {
-            self.radiance
-        } else {
-            Spectrum::ZERO
+    pub fn eval(&self, si: &SurfaceInteraction, w: Vec3, shapes: &[Shape]) -> Spectrum {
+        if si.frame.n.dot(w) <= 0.0 {
+            return Spectrum::ZERO;
+        }
+        match &self.radiance {
+            Texture::Constant { rgb, .. } => *rgb,
+            t => t.eval(&texture_context(si, &shapes[self.shape as usize].geometry)),
+        }
+    }
+
+    /// The mean radiance (for power estimates).
+    pub fn mean_radiance(&self) -> f64 {
+        match &self.radiance {
+            Texture::Constant { rgb, .. } => (rgb.x as f64 + rgb.y as f64 + rgb.z as f64) / 3.0,
+            t => t.mean() as f64,
         }
     }
 
@@ -59,9 +110,13 @@ impl AreaEmitter {
         shapes: &[Shape],
     ) -> Option<DirectionSample> {
         let geometry = &shapes[self.shape as usize].geometry;
+        let radiance = match &self.radiance {
+            Texture::Constant { rgb, .. } => *rgb,
+            _ => return self.sample_textured(p_ref, u, geometry),
+        };
         if let ShapeGeometry::Sphere(s) = geometry {
             if let Some(cone) = sphere_cone(s, p_ref) {
-                return self.sample_sphere_cone(s, p_ref, u, cone);
+                return self.sample_sphere_cone(radiance, s, p_ref, u, cone);
             }
         }
         let ps = geometry.sample_position(u)?;
@@ -84,13 +139,50 @@ impl AreaEmitter {
             d,
             dist,
             pdf,
-            radiance: self.radiance,
+            radiance,
+            delta: false,
+        })
+    }
+
+    /// Mitsuba's strategy for a spatially varying radiance: uv by the texture, mapped onto
+    /// the shape.
+    fn sample_textured(
+        &self,
+        p_ref: Vec3,
+        u: Vec2,
+        geometry: &ShapeGeometry,
+    ) -> Option<DirectionSample> {
+        let (uv, pdf_uv) = self.radiance.sample_position(u);
+        if pdf_uv.is_nan() || pdf_uv <= 0.0 {
+            return None;
+        }
+        let si = geometry.at_uv(uv, self.uv_grid.as_ref(), self.shape)?;
+        let jacobian = si.dp_du.cross(si.dp_dv).length();
+        let v = si.p - p_ref;
+        let dist2 = v.length_squared();
+        let dist = dist2.sqrt();
+        let d = v / dist;
+        let cos_light = -si.ng.dot(d);
+        if !(cos_light > 0.0 && jacobian > 0.0 && dist > 0.0) {
+            return None;
+        }
+        let pdf = pdf_uv / jacobian * dist2 / cos_light;
+        let radiance = self.radiance.eval(&texture_context(&si, geometry));
+        (pdf.is_finite() && pdf > 0.0).then_some(DirectionSample {
+            p: si.p,
+            p_error: si.p_error,
+            n: si.ng,
+            d,
+            dist,
+            pdf,
+            radiance,
             delta: false,
         })
     }
 
     fn sample_sphere_cone(
         &self,
+        radiance: Spectrum,
         s: &Sphere,
         p_ref: Vec3,
         u: Vec2,
@@ -116,7 +208,7 @@ impl AreaEmitter {
         }
         let d = v / dist;
         let radiance = if ps.n.dot(-d) > 0.0 {
-            self.radiance
+            radiance
         } else {
             Spectrum::ZERO // a sphere emitting inwards, seen from outside
         };
@@ -137,6 +229,17 @@ impl AreaEmitter {
     /// `si` (the same shape hit by a ray from `p_ref`).
     pub fn pdf_direction(&self, p_ref: Vec3, si: &SurfaceInteraction, shapes: &[Shape]) -> f32 {
         let geometry = &shapes[self.shape as usize].geometry;
+        if !self.radiance.is_constant() {
+            let v = si.p - p_ref;
+            let dist2 = v.length_squared();
+            let cos_light = -si.ng.dot(v) / dist2.sqrt();
+            let jacobian = si.dp_du.cross(si.dp_dv).length();
+            if !(cos_light > 0.0 && jacobian > 0.0) {
+                return 0.0;
+            }
+            let pdf = self.radiance.pdf_position(si.uv) * dist2 / (jacobian * cos_light);
+            return if pdf.is_finite() { pdf } else { 0.0 };
+        }
         if let ShapeGeometry::Sphere(s) = geometry {
             if let Some((_, _, _, one_minus)) = sphere_cone(s, p_ref) {
                 return (1.0 / (2.0 * std::f64::consts::PI * one_minus)) as f32;

@@ -1,6 +1,6 @@
 //! Emitters. Sampling returns solid-angle densities so that next-event estimation and the MIS
 //! weight of a BSDF-sampled hit use one and the same pdf. Delta emitters (point, spot,
-//! directional) return the probability 1 in place of a density and are never hit by rays;
+//! projector, directional) return the probability 1 in place of a density and are never hit by rays;
 //! environment emitters (constant, envmap) are seen by rays that leave the scene.
 
 pub mod area;
@@ -8,6 +8,7 @@ pub mod constant;
 pub mod directional;
 pub mod envmap;
 pub mod point;
+pub mod projector;
 pub mod spot;
 
 pub use area::AreaEmitter;
@@ -15,6 +16,7 @@ pub use constant::ConstantEmitter;
 pub use directional::DirectionalEmitter;
 pub use envmap::EnvMapEmitter;
 pub use point::PointEmitter;
+pub use projector::ProjectorEmitter;
 pub use spot::SpotEmitter;
 
 use crate::bsdf::Spectrum;
@@ -55,6 +57,7 @@ pub enum Emitter {
     Area(AreaEmitter),
     Point(PointEmitter),
     Spot(SpotEmitter),
+    Projector(ProjectorEmitter),
     Directional(DirectionalEmitter),
     Constant(ConstantEmitter),
     EnvMap(EnvMapEmitter),
@@ -73,6 +76,7 @@ impl Emitter {
             Emitter::Area(e) => e.sample_direction(p_ref, u, shapes),
             Emitter::Point(e) => e.sample_direction(p_ref),
             Emitter::Spot(e) => e.sample_direction(p_ref),
+            Emitter::Projector(e) => e.sample_direction(p_ref),
             Emitter::Directional(e) => Some(e.sample_direction()),
             Emitter::Constant(e) => e.sample_direction(u),
             Emitter::EnvMap(e) => e.sample_direction(u),
@@ -108,7 +112,10 @@ impl Emitter {
     /// sphere of radius `scene_radius`:
     /// - area: π · A · L (one-sided Lambertian emitter)
     /// - point: 4π · I
-    /// - spot: 2π (1 − cos θ) · I with θ halfway between beam_width and cutoff_angle
+    /// - spot: 2π (1 − cos θ) · I with θ halfway between beam_width and cutoff_angle (times
+    ///   the texture's mean)
+    /// - projector: π · mean irradiance · the image's area at distance 1 (Mitsuba's
+    ///   `sample_ray` weight)
     /// - directional: π r² · E
     /// - constant and envmap: π · π r² · mean L (irradiance π L over the disk π r²)
     pub fn power(&self, shapes: &[Shape], scene_radius: f64) -> f64 {
@@ -116,10 +123,11 @@ impl Emitter {
         let disk = std::f64::consts::PI * scene_radius * scene_radius;
         match self {
             Emitter::Area(e) => {
-                std::f64::consts::PI * shapes[e.shape as usize].geometry.area() * mean(e.radiance)
+                std::f64::consts::PI * shapes[e.shape as usize].geometry.area() * e.mean_radiance()
             }
             Emitter::Point(e) => 4.0 * std::f64::consts::PI * mean(e.intensity),
-            Emitter::Spot(e) => e.solid_angle() * mean(e.intensity),
+            Emitter::Spot(e) => e.solid_angle() * mean(e.intensity) * e.texture_mean(),
+            Emitter::Projector(e) => std::f64::consts::PI * e.mean_irradiance() * e.image_area(),
             Emitter::Directional(e) => disk * mean(e.irradiance),
             Emitter::Constant(e) => std::f64::consts::PI * disk * mean(e.radiance),
             Emitter::EnvMap(e) => std::f64::consts::PI * disk * e.mean_radiance(),

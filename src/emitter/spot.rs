@@ -1,34 +1,78 @@
 //! Mitsuba's `spot` emitter: a point light at the origin of `to_world` shining down its local
 //! +z axis with intensity I inside `beam_width`, falling off linearly in the angle from the
-//! axis to 0 at `cutoff_angle` (the falloff of Mitsuba 3.9.1, measured: at cutoff 20°,
-//! beam 15°, the intensity at 16° and 18° is 0.8 I and 0.4 I).
+//! axis to 0 at `cutoff_angle` (Mitsuba 3.9.1's `falloff_curve`, measured: at cutoff 20°,
+//! beam 15°, the intensity at 16° and 18° is 0.8 I and 0.4 I), optionally modulated by a
+//! `texture` spread over the cone: the direction d (local frame) looks it up at
+//! uv = ½ + ½ (d.x, d.y) / (d.z tan(cutoff_angle)).
+//!
+//! | parameter | default | |
+//! |---|---|---|
+//! | `intensity` | 1 | a colour (not spatially varying) |
+//! | `texture` | none | a spatially varying texture (a bitmap) |
+//! | `cutoff_angle` | 20° | |
+//! | `beam_width` | ¾ cutoff_angle | |
+//! | `to_world` | identity | the light looks down local +z |
 
 use super::DirectionSample;
 use crate::bsdf::Spectrum;
-use glam::Vec3;
+use crate::texture::{Texture, TextureContext};
+use glam::{DMat3, DMat4, DVec3, Mat3, Vec2, Vec3};
 
 #[derive(Clone, Debug)]
 pub struct SpotEmitter {
     pub position: Vec3,
-    /// Unit axis of the cone (world).
-    pub axis: Vec3,
+    /// World to local directions: the inverse of `to_world`'s linear part (Mitsuba applies
+    /// the whole inverse transform, so a scaled frame changes the cone as it does there).
+    to_local: Mat3,
     pub intensity: Spectrum,
-    /// Radians.
-    pub cutoff_angle: f32,
-    pub beam_width: f32,
+    cutoff_angle: f32,
+    cos_cutoff: f32,
+    cos_beam: f32,
+    inv_transition_width: f32,
+    /// tan(cutoff_angle): the cone's edge at uv distance ½ from the centre.
+    uv_factor: f32,
+    beam_width: f32,
+    texture: Option<Texture>,
 }
 
 impl SpotEmitter {
-    /// The falloff factor in direction `w` (unit, from the light).
-    pub fn falloff(&self, w: Vec3) -> f32 {
-        let cos_theta = w.dot(self.axis).clamp(-1.0, 1.0);
-        let theta = cos_theta.acos();
-        if theta >= self.cutoff_angle {
+    /// A spot light with frame `to_world` (angles in degrees); `None` when the frame is
+    /// degenerate.
+    pub fn new(
+        to_world: DMat4,
+        intensity: Spectrum,
+        cutoff_angle: f64,
+        beam_width: f64,
+        texture: Option<Texture>,
+    ) -> Option<Self> {
+        let linear = DMat3::from_mat4(to_world);
+        if linear.determinant().abs() < 1e-300 || !linear.determinant().is_finite() {
+            return None;
+        }
+        let (cutoff, beam) = (cutoff_angle.to_radians(), beam_width.to_radians());
+        Some(SpotEmitter {
+            position: to_world.transform_point3(DVec3::ZERO).as_vec3(),
+            to_local: linear.inverse().as_mat3(),
+            intensity,
+            cutoff_angle: cutoff as f32,
+            cos_cutoff: cutoff.cos() as f32,
+            cos_beam: beam.cos() as f32,
+            inv_transition_width: (1.0 / (cutoff - beam)) as f32,
+            uv_factor: cutoff.tan() as f32,
+            beam_width: beam as f32,
+            texture,
+        })
+    }
+
+    /// Mitsuba's falloff in local direction `d` (any length).
+    pub fn falloff(&self, d: Vec3) -> f32 {
+        let cos_theta = d.normalize_or_zero().z;
+        if cos_theta <= self.cos_cutoff {
             0.0
-        } else if theta <= self.beam_width {
+        } else if cos_theta >= self.cos_beam {
             1.0
         } else {
-            (self.cutoff_angle - theta) / (self.cutoff_angle - self.beam_width)
+            (self.cutoff_angle - cos_theta.clamp(-1.0, 1.0).acos()) * self.inv_transition_width
         }
     }
 
@@ -39,6 +83,19 @@ impl SpotEmitter {
         2.0 * std::f64::consts::PI * (1.0 - mid.cos())
     }
 
+    /// The mean of the texture (1 without one).
+    pub fn texture_mean(&self) -> f64 {
+        self.texture.as_ref().map_or(1.0, |t| t.mean() as f64)
+    }
+
+    /// The texture's coordinates for local direction `d` (Mitsuba's `direction_to_uv`).
+    fn direction_to_uv(&self, d: Vec3) -> Vec2 {
+        Vec2::new(
+            0.5 + 0.5 * d.x / (d.z * self.uv_factor),
+            0.5 + 0.5 * d.y / (d.z * self.uv_factor),
+        )
+    }
+
     pub fn sample_direction(&self, p_ref: Vec3) -> Option<DirectionSample> {
         let v = self.position - p_ref;
         let dist2 = v.length_squared();
@@ -47,9 +104,14 @@ impl SpotEmitter {
         }
         let dist = dist2.sqrt();
         let d = v / dist;
-        let f = self.falloff(-d);
+        let local = self.to_local * -d;
+        let f = self.falloff(local);
         if f <= 0.0 {
             return None;
+        }
+        let mut radiance = self.intensity * (f / dist2);
+        if let Some(t) = &self.texture {
+            radiance *= t.eval(&TextureContext::at_uv(self.direction_to_uv(local)));
         }
         Some(DirectionSample {
             p: self.position,
@@ -58,7 +120,7 @@ impl SpotEmitter {
             d,
             dist,
             pdf: 1.0,
-            radiance: self.intensity * (f / dist2),
+            radiance,
             delta: true,
         })
     }

@@ -65,7 +65,7 @@ pub(crate) fn emission_at(scene: &Scene, hit: Option<&SurfaceInteraction>, d: Ve
         None => scene.eval_environment(d),
         Some(si) => match scene.shapes[si.shape as usize].emitter {
             Some(e) => match &scene.emitters[e as usize] {
-                Emitter::Area(area) => area.eval(si, -d.normalize()),
+                Emitter::Area(area) => area.eval(si, -d.normalize(), &scene.shapes),
                 _ => Spectrum::ZERO,
             },
             None => Spectrum::ZERO,

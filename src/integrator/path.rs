@@ -72,7 +72,7 @@ impl PathIntegrator {
                     continue;
                 }
                 let le = match &scene.emitters[e as usize] {
-                    crate::emitter::Emitter::Area(area) => area.eval(&si, wi_world),
+                    crate::emitter::Emitter::Area(area) => area.eval(&si, wi_world, &scene.shapes),
                     _ => Vec3::ZERO,
                 };
                 if le != Vec3::ZERO {

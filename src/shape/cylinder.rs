@@ -274,7 +274,18 @@ impl Cylinder {
         let hit = o + d * t as f64;
         // Re-project onto the unit tube (the error left is f64 rounding).
         let r = (hit.x * hit.x + hit.y * hit.y).sqrt();
-        let local = DVec3::new(hit.x / r, hit.y / r, hit.z);
+        self.interaction_at(DVec3::new(hit.x / r, hit.y / r, hit.z), t, shape)
+    }
+
+    /// The point with surface coordinates `uv` (Mitsuba's `eval_parameterization`:
+    /// φ = 2π u, height v along the axis).
+    pub fn at_uv(&self, uv: Vec2, shape: u32) -> SurfaceInteraction {
+        let (sin_phi, cos_phi) = (2.0 * PI * uv.x as f64).sin_cos();
+        self.interaction_at(DVec3::new(cos_phi, sin_phi, uv.y as f64), 0.0, shape)
+    }
+
+    /// The interaction at `local`, a point of the unit tube in object space.
+    fn interaction_at(&self, local: DVec3, t: f32, shape: u32) -> SurfaceInteraction {
         let (p, p_error) = self.world_point(local);
         let n = self.normal_at(local);
         let dp_du = self.dp_du_local(local);

@@ -84,7 +84,19 @@ impl Disk {
         let o = self.to_local.transform_point3(ray.o.as_dvec3());
         let d = self.to_local.transform_vector3(ray.d.as_dvec3());
         let tl = -o.z / d.z;
-        let (x, y) = (o.x + tl * d.x, o.y + tl * d.y);
+        self.interaction_at(o.x + tl * d.x, o.y + tl * d.y, t, shape)
+    }
+
+    /// The point with surface coordinates `uv` (Mitsuba's `eval_parameterization`: radius u,
+    /// angle 2π v).
+    pub fn at_uv(&self, uv: Vec2, shape: u32) -> SurfaceInteraction {
+        let (sin_phi, cos_phi) = (2.0 * PI * uv.y as f64).sin_cos();
+        let r = uv.x as f64;
+        self.interaction_at(r * cos_phi, r * sin_phi, 0.0, shape)
+    }
+
+    /// The interaction at local (x, y, 0).
+    fn interaction_at(&self, x: f64, y: f64, t: f32, shape: u32) -> SurfaceInteraction {
         let (p, p_error) = self.world_point(x, y);
         let r = (x * x + y * y).sqrt();
         let phi = y.atan2(x).rem_euclid(2.0 * PI);

@@ -214,6 +214,105 @@ impl Mesh {
     }
 }
 
+/// Where each texture coordinate lies on a mesh (Mitsuba's `eval_parameterization` for
+/// meshes, which traces a ray in uv space): a uniform grid over the uvs' bounding box, each
+/// cell listing the triangles whose uv triangle overlaps it. Built for meshes whose emitted
+/// radiance is textured.
+#[derive(Clone, Debug)]
+pub struct UvGrid {
+    lo: Vec2,
+    /// Cells per unit of uv.
+    scale: Vec2,
+    n: usize,
+    /// Cell c's triangles are `tris[start[c]..start[c + 1]]`.
+    start: Vec<u32>,
+    tris: Vec<u32>,
+}
+
+impl UvGrid {
+    /// `None` if the mesh has no texture coordinates.
+    pub fn new(mesh: &Mesh) -> Option<Self> {
+        let uvs = mesh.uvs.as_ref()?;
+        let (mut lo, mut hi) = (Vec2::splat(f32::INFINITY), Vec2::splat(f32::NEG_INFINITY));
+        for uv in uvs.iter().filter(|uv| uv.is_finite()) {
+            lo = lo.min(*uv);
+            hi = hi.max(*uv);
+        }
+        if !(lo.is_finite() && hi.is_finite()) {
+            return None;
+        }
+        let n = ((mesh.triangles.len() as f64).sqrt().ceil() as usize).clamp(1, 1024);
+        let extent = (hi - lo).max(Vec2::splat(1e-12));
+        let scale = Vec2::splat(n as f32) / extent;
+        let cell_range = |tri: &[u32; 3]| {
+            let t = tri.map(|i| uvs[i as usize]);
+            let (a, b) = (t[0].min(t[1]).min(t[2]), t[0].max(t[1]).max(t[2]));
+            let c0 = ((a - lo) * scale).floor();
+            let c1 = ((b - lo) * scale).floor();
+            let clamp = |x: f32| (x.max(0.0) as usize).min(n - 1);
+            (clamp(c0.x), clamp(c1.x), clamp(c0.y), clamp(c1.y))
+        };
+        let mut count = vec![0u32; n * n + 1];
+        for tri in &mesh.triangles {
+            let (x0, x1, y0, y1) = cell_range(tri);
+            for y in y0..=y1 {
+                for x in x0..=x1 {
+                    count[y * n + x + 1] += 1;
+                }
+            }
+        }
+        for c in 1..count.len() {
+            count[c] += count[c - 1];
+        }
+        let mut fill = count.clone();
+        let mut tris = vec![0u32; *count.last().unwrap_or(&0) as usize];
+        for (t, tri) in mesh.triangles.iter().enumerate() {
+            let (x0, x1, y0, y1) = cell_range(tri);
+            for y in y0..=y1 {
+                for x in x0..=x1 {
+                    let c = y * n + x;
+                    tris[fill[c] as usize] = t as u32;
+                    fill[c] += 1;
+                }
+            }
+        }
+        Some(UvGrid {
+            lo,
+            scale,
+            n,
+            start: count,
+            tris,
+        })
+    }
+
+    /// The triangle whose uv triangle contains `uv`, and the barycentrics (b1, b2) of `uv`
+    /// in it; `None` where no triangle maps (or when `mesh` has no uvs).
+    pub fn locate(&self, mesh: &Mesh, uv: Vec2) -> Option<(usize, Vec2)> {
+        let uvs = mesh.uvs.as_ref()?;
+        let c = ((uv - self.lo) * self.scale).floor();
+        if !(c.x >= 0.0 && c.y >= 0.0 && (c.x as usize) < self.n && (c.y as usize) < self.n) {
+            return None;
+        }
+        let cell = c.y as usize * self.n + c.x as usize;
+        let range = self.start[cell] as usize..self.start[cell + 1] as usize;
+        for &t in &self.tris[range] {
+            let [a, b, c] = mesh.triangles[t as usize].map(|i| uvs[i as usize].as_dvec2());
+            let (e1, e2, q) = (b - a, c - a, uv.as_dvec2() - a);
+            let det = e1.x * e2.y - e1.y * e2.x;
+            if det == 0.0 || !det.is_finite() {
+                continue;
+            }
+            let b1 = (q.x * e2.y - q.y * e2.x) / det;
+            let b2 = (e1.x * q.y - e1.y * q.x) / det;
+            const EPS: f64 = 1e-9;
+            if b1 >= -EPS && b2 >= -EPS && b1 + b2 <= 1.0 + EPS {
+                return Some((t as usize, Vec2::new(b1 as f32, b2 as f32)));
+            }
+        }
+        None
+    }
+}
+
 /// The point Σ bᵢ pᵢ and its conservative error bound γ(n) Σ |bᵢ pᵢ| (pbrt-v4 §6.8.2).
 fn barycentric_point(p: [Vec3; 3], b: [f32; 3], n: i32) -> (Vec3, Vec3) {
     let q = [p[0] * b[0], p[1] * b[1], p[2] * b[2]];

@@ -11,7 +11,7 @@ pub mod sphere;
 
 pub use cylinder::Cylinder;
 pub use disk::Disk;
-pub use mesh::Mesh;
+pub use mesh::{Mesh, UvGrid};
 pub use sdfgrid::SdfGrid;
 pub use sphere::Sphere;
 
@@ -91,6 +91,26 @@ impl ShapeGeometry {
             ShapeGeometry::Cylinder(c) => Some(c.sample_position(u)),
             ShapeGeometry::SdfGrid(_) => None,
         }
+    }
+
+    /// The point with surface coordinates `uv` (Mitsuba's `eval_parameterization`), for
+    /// textured emitters: analytic shapes invert their parameterisation, meshes look `uv` up
+    /// in `grid` (built for this mesh). `None` where no point has these coordinates, and for
+    /// SDF grids.
+    pub fn at_uv(&self, uv: Vec2, grid: Option<&UvGrid>, shape: u32) -> Option<SurfaceInteraction> {
+        if !uv.is_finite() {
+            return None;
+        }
+        Some(match self {
+            ShapeGeometry::Mesh(m) => {
+                let (tri, b) = grid?.locate(m, uv)?;
+                m.interaction(tri, 0.0, b.x, b.y, shape)
+            }
+            ShapeGeometry::Sphere(s) => s.at_uv(uv, shape),
+            ShapeGeometry::Disk(d) => d.at_uv(uv, shape),
+            ShapeGeometry::Cylinder(c) => c.at_uv(uv, shape),
+            ShapeGeometry::SdfGrid(_) => return None,
+        })
     }
 
     /// World-space bounds (min, max) of an analytic shape (`None` for meshes, whose

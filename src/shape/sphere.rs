@@ -84,7 +84,20 @@ impl Sphere {
     pub fn interaction(&self, ray: &Ray, t: f32, shape: u32) -> SurfaceInteraction {
         let hit = ray.o.as_dvec3() + ray.d.as_dvec3() * t as f64;
         let local = hit - self.center;
-        let local = local * (self.radius / local.length());
+        self.interaction_at(local * (self.radius / local.length()), t, shape)
+    }
+
+    /// The point with surface coordinates `uv` (Mitsuba's `eval_parameterization`:
+    /// φ = 2π u, θ = π v in the sphere's frame).
+    pub fn at_uv(&self, uv: Vec2, shape: u32) -> SurfaceInteraction {
+        let (sin_phi, cos_phi) = (2.0 * PI * uv.x as f64).sin_cos();
+        let (sin_theta, cos_theta) = (PI * uv.y as f64).sin_cos();
+        let q = DVec3::new(sin_theta * cos_phi, sin_theta * sin_phi, cos_theta);
+        self.interaction_at(self.rotation * q * self.radius, 0.0, shape)
+    }
+
+    /// The interaction at `local` = the point minus the centre (length `radius`).
+    fn interaction_at(&self, local: DVec3, t: f32, shape: u32) -> SurfaceInteraction {
         let (p, p_error) = Self::rounded(self.center + local);
         let n = self.normal_at(self.center + local);
         // Mitsuba's parameterisation, in the sphere's own frame (unit radius).

@@ -16,7 +16,7 @@ use crate::accel::{Accel, Group, Instance};
 use crate::camera::{fov_x_degrees, Camera, OrthographicCamera, PerspectiveCamera, ThinLens};
 use crate::emitter::{
     AreaEmitter, ConstantEmitter, DirectionalEmitter, Emitter, EnvMapEmitter, PointEmitter,
-    SpotEmitter,
+    ProjectorEmitter, SpotEmitter,
 };
 use crate::error::{Error, Result};
 use crate::film::Filter;
@@ -72,14 +72,28 @@ pub fn build(desc: &SceneDescription) -> Result<Scene> {
         let material = materials
             .material(&sd.bsdf)
             .map_err(|e| Error::scene(&sd.location, e.to_string()))?;
-        let emitter = match &sd.emitter {
-            None => None,
+        shapes.push(Shape {
+            geometry,
+            material,
+            emitter: None,
+        });
+        match &sd.emitter {
+            None => {}
             Some(EmitterDesc::Area { radiance }) => {
-                emitters.push(Emitter::Area(AreaEmitter {
-                    shape: shape_index,
-                    radiance: radiance.as_vec3(),
-                }));
-                Some((emitters.len() - 1) as u32)
+                let mut radiance = materials
+                    .texture(radiance)
+                    .map_err(|e| Error::scene(&sd.location, e.to_string()))?;
+                if let crate::texture::Texture::Bitmap(b) = &mut radiance {
+                    b.prepare_sampling();
+                }
+                let area = AreaEmitter::new(shape_index, radiance, &shapes).ok_or_else(|| {
+                    Error::scene(
+                        &sd.location,
+                        "a textured area emitter needs a shape with texture coordinates (a mesh with uvs or an analytic shape; not an SDF grid)",
+                    )
+                })?;
+                emitters.push(Emitter::Area(area));
+                shapes[shape_index as usize].emitter = Some((emitters.len() - 1) as u32);
             }
             Some(_) => {
                 return Err(Error::scene(
@@ -87,12 +101,7 @@ pub fn build(desc: &SceneDescription) -> Result<Scene> {
                     "only an area emitter can be attached to a shape",
                 ))
             }
-        };
-        shapes.push(Shape {
-            geometry,
-            material,
-            emitter,
-        });
+        }
     }
     // Shape groups: their shapes follow the scene's own, in the group's space, each group with
     // its own hierarchy. (Groups hold no emitters: the description refuses them.)
@@ -121,7 +130,7 @@ pub fn build(desc: &SceneDescription) -> Result<Scene> {
         if matches!(e, EmitterDesc::Constant { .. } | EmitterDesc::EnvMap { .. }) {
             environment = Some(emitters.len() as u32);
         }
-        emitters.push(scene_emitter(e, shift)?);
+        emitters.push(scene_emitter(e, shift, &mut materials)?);
     }
     if emitters.is_empty() {
         warnings.push("the scene has no emitter: the image will be black".into());
@@ -188,7 +197,11 @@ fn bounding_sphere(accel: &Accel) -> (Vec3, f32) {
 
 /// An emitter declared at the scene level; `shift` maps world space to the camera-relative
 /// space the scene is built in (positions move, directions do not).
-fn scene_emitter(e: &EmitterDesc, shift: DMat4) -> Result<Emitter> {
+fn scene_emitter(
+    e: &EmitterDesc,
+    shift: DMat4,
+    textures: &mut material::MaterialBuilder,
+) -> Result<Emitter> {
     Ok(match e {
         EmitterDesc::Area { .. } => {
             return Err(Error::Invalid(
@@ -207,17 +220,49 @@ fn scene_emitter(e: &EmitterDesc, shift: DMat4) -> Result<Emitter> {
             intensity,
             cutoff_angle,
             beam_width,
-        } => Emitter::Spot(SpotEmitter {
-            position: (shift * *to_world).transform_point3(DVec3::ZERO).as_vec3(),
-            axis: to_world
-                .transform_vector3(DVec3::Z)
-                .try_normalize()
-                .unwrap_or(DVec3::Z)
-                .as_vec3(),
-            intensity: intensity.as_vec3(),
-            cutoff_angle: cutoff_angle.to_radians() as f32,
-            beam_width: beam_width.to_radians() as f32,
-        }),
+            texture,
+        } => {
+            let texture = match texture {
+                Some(t) => Some(textures.texture(t)?),
+                None => None,
+            };
+            Emitter::Spot(
+                SpotEmitter::new(
+                    shift * *to_world,
+                    intensity.as_vec3(),
+                    *cutoff_angle,
+                    *beam_width,
+                    texture,
+                )
+                .ok_or_else(|| Error::Invalid("to_world of a spot light is degenerate".into()))?,
+            )
+        }
+        EmitterDesc::Projector {
+            to_world,
+            irradiance,
+            scale,
+            fov,
+            fov_axis,
+        } => {
+            let irradiance = textures.texture(irradiance)?;
+            // Mitsuba: the aspect ratio of the irradiance texture's resolution (1x1 for a
+            // constant).
+            let (w, h) = match &irradiance {
+                crate::texture::Texture::Bitmap(b) => b.resolution(),
+                _ => (1, 1),
+            };
+            let aspect = w as f64 / h as f64;
+            Emitter::Projector(
+                ProjectorEmitter::new(
+                    shift * *to_world,
+                    irradiance,
+                    *scale,
+                    fov_x_degrees(*fov, *fov_axis, aspect),
+                    aspect,
+                )
+                .ok_or_else(|| Error::Invalid("to_world of a projector is degenerate".into()))?,
+            )
+        }
         EmitterDesc::Directional {
             direction,
             irradiance,

@@ -1,12 +1,16 @@
 //! Emitters: `area` (on shapes) and the scene-level ones.
 
+use super::sensor::fov_desc;
+use super::texture::{texture_or, texture_param, Children};
 use super::*;
+use crate::camera::FovAxis;
 use crate::spectrum::ColorRole;
 
 #[derive(Clone, Debug, PartialEq)]
 pub enum EmitterDesc {
+    /// `radiance` may be a texture (looked up at the shape's uv).
     Area {
-        radiance: DVec3,
+        radiance: TextureDesc,
     },
     Point {
         position: DVec3,
@@ -18,6 +22,18 @@ pub enum EmitterDesc {
         /// Degrees.
         cutoff_angle: f64,
         beam_width: f64,
+        /// `texture`: a spatially varying texture over the cone, uv from the direction.
+        texture: Option<TextureDesc>,
+    },
+    /// Mitsuba's `projector`: a pinhole projecting the `irradiance` texture (the image
+    /// irradiance on a plane at distance 1) along local +z.
+    Projector {
+        to_world: DMat4,
+        irradiance: TextureDesc,
+        scale: f64,
+        /// Degrees along `fov_axis` of the irradiance texture's aspect ratio.
+        fov: f64,
+        fov_axis: FovAxis,
     },
     Directional {
         /// Unit direction in which the light travels (world).
@@ -35,25 +51,43 @@ pub enum EmitterDesc {
     },
 }
 
+impl EmitterDesc {
+    /// The image files the emitter reads.
+    pub fn files<'a>(&'a self, out: &mut Vec<&'a Path>) {
+        match self {
+            EmitterDesc::EnvMap { filename, .. } => out.push(filename),
+            EmitterDesc::Area { radiance } => radiance.files(out),
+            EmitterDesc::Spot {
+                texture: Some(t), ..
+            } => t.files(out),
+            EmitterDesc::Projector { irradiance, .. } => irradiance.files(out),
+            _ => {}
+        }
+    }
+}
+
 pub(super) fn area_emitter_desc(cx: &Ctx, o: &Object) -> Result<EmitterDesc> {
     if o.plugin != "area" {
         return Err(unsupported_plugin(o));
     }
-    no_children(o)?;
     let mut p = Props::new(o);
-    let radiance = p.color("radiance", ColorRole::Emission)?;
+    let mut ch = Children::new(o);
+    let radiance = texture_param(cx, &mut p, &mut ch, "radiance", ColorRole::Emission)?;
     cx.finish(p)?;
+    ch.finish()?;
     let radiance = radiance
         .ok_or_else(|| Error::scene(&o.location, format!("{} needs a 'radiance'", describe(o))))?;
-    if radiance.min_element() < 0.0 {
-        return Err(Error::scene(&o.location, "radiance must not be negative"));
+    if let Some(c) = radiance.constant_rgb() {
+        if c.min_element() < 0.0 {
+            return Err(Error::scene(&o.location, "radiance must not be negative"));
+        }
     }
     Ok(EmitterDesc::Area { radiance })
 }
 
 pub(super) fn scene_emitter_desc(cx: &Ctx, o: &Object) -> Result<EmitterDesc> {
-    no_children(o)?;
     let mut p = Props::new(o);
+    let mut ch = Children::new(o);
     let non_negative = |c: DVec3, what: &str| -> Result<DVec3> {
         if c.min_element() < 0.0 || !c.is_finite() {
             return Err(Error::scene(
@@ -94,11 +128,64 @@ pub(super) fn scene_emitter_desc(cx: &Ctx, o: &Object) -> Result<EmitterDesc> {
                     format!("beam_width must lie in [0, cutoff_angle], got {beam_width}"),
                 ));
             }
+            // Mitsuba: `texture` must vary over the cone (a constant belongs in `intensity`).
+            let texture = texture_param(cx, &mut p, &mut ch, "texture", ColorRole::Reflectance)?;
+            if texture.as_ref().is_some_and(|t| t.constant_rgb().is_some()) {
+                return Err(Error::scene(
+                    &o.location,
+                    format!(
+                        "the 'texture' of {} must be spatially varying (e.g. a bitmap)",
+                        describe(o)
+                    ),
+                ));
+            }
             EmitterDesc::Spot {
                 to_world,
                 intensity: non_negative(intensity, "intensity")?,
                 cutoff_angle,
                 beam_width,
+                texture,
+            }
+        }
+        "projector" => {
+            let to_world = p.transform("to_world")?;
+            let irradiance = texture_or(
+                cx,
+                &mut p,
+                &mut ch,
+                "irradiance",
+                ColorRole::Emission,
+                TextureDesc::value(1.0),
+            )?;
+            if let Some(c) = irradiance.constant_rgb() {
+                non_negative(c, "irradiance")?;
+            }
+            let scale = p.float("scale", 1.0)?;
+            if !(scale >= 0.0 && scale.is_finite()) {
+                return Err(Error::scene(
+                    &o.location,
+                    format!(
+                        "scale of {} must be finite and >= 0, got {scale}",
+                        describe(o)
+                    ),
+                ));
+            }
+            let (fov, fov_axis) = fov_desc(&mut p, o)?;
+            if !(fov > 0.0 && fov < 180.0) {
+                return Err(Error::scene(
+                    &o.location,
+                    format!(
+                        "the field of view of {} must lie in (0, 180) degrees, got {fov}",
+                        describe(o)
+                    ),
+                ));
+            }
+            EmitterDesc::Projector {
+                to_world,
+                irradiance,
+                scale,
+                fov,
+                fov_axis,
             }
         }
         "directional" => {
@@ -159,5 +246,6 @@ pub(super) fn scene_emitter_desc(cx: &Ctx, o: &Object) -> Result<EmitterDesc> {
         _ => return Err(unsupported_plugin(o)),
     };
     cx.finish(p)?;
+    ch.finish()?;
     Ok(e)
 }

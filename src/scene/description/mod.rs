@@ -66,16 +66,18 @@ impl SceneDescription {
                 _ => None,
             })
             .collect();
-        files.extend(self.emitters.iter().filter_map(|e| match e {
-            EmitterDesc::EnvMap { filename, .. } => Some(filename.as_path()),
-            _ => None,
-        }));
         let shapes = self
             .shapes
             .iter()
             .chain(self.shape_groups.iter().flat_map(|g| g.shapes.iter()));
         for s in shapes {
             s.bsdf.files(&mut files);
+            if let Some(e) = &s.emitter {
+                e.files(&mut files);
+            }
+        }
+        for e in &self.emitters {
+            e.files(&mut files);
         }
         files.sort();
         files.dedup();

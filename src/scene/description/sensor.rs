@@ -69,24 +69,12 @@ fn focal_length_fov(p: &mut Props, o: &Object) -> Result<f64> {
     }
 }
 
-pub(super) fn sensor_desc(o: &Object) -> Result<SensorDesc> {
-    if !matches!(
-        o.plugin.as_str(),
-        "perspective" | "thinlens" | "orthographic"
-    ) {
-        return Err(unsupported_plugin(o));
-    }
-    let orthographic = o.plugin == "orthographic";
-    let mut p = Props::new(o);
-    let aperture_radius = if o.plugin == "thinlens" {
-        Some(p.float("aperture_radius", f64::NAN)?)
-    } else {
-        None
-    };
+/// Mitsuba's field of view of a projective sensor (and of the projector emitter): `fov`
+/// along `fov_axis` (x, y, diagonal, smaller, larger; default x), or a `focal_length`
+/// (default 50mm, as a diagonal field of view), not both. Degrees.
+pub(super) fn fov_desc(p: &mut Props, o: &Object) -> Result<(f64, FovAxis)> {
     let has = |n: &str| o.properties.iter().any(|q| q.name == n);
-    let (fov, fov_axis) = if orthographic {
-        (90.0, FovAxis::X)
-    } else if has("fov") {
+    if has("fov") {
         if has("focal_length") {
             return Err(Error::scene(
                 &o.location,
@@ -114,11 +102,32 @@ pub(super) fn sensor_desc(o: &Object) -> Result<SensorDesc> {
                 }
             },
         };
-        (fov, fov_axis)
+        Ok((fov, fov_axis))
     } else {
         // Mitsuba ignores fov_axis with a focal length; accept it likewise.
         let _ = p.string("fov_axis")?;
-        (focal_length_fov(&mut p, o)?, FovAxis::Diagonal)
+        Ok((focal_length_fov(p, o)?, FovAxis::Diagonal))
+    }
+}
+
+pub(super) fn sensor_desc(o: &Object) -> Result<SensorDesc> {
+    if !matches!(
+        o.plugin.as_str(),
+        "perspective" | "thinlens" | "orthographic"
+    ) {
+        return Err(unsupported_plugin(o));
+    }
+    let orthographic = o.plugin == "orthographic";
+    let mut p = Props::new(o);
+    let aperture_radius = if o.plugin == "thinlens" {
+        Some(p.float("aperture_radius", f64::NAN)?)
+    } else {
+        None
+    };
+    let (fov, fov_axis) = if orthographic {
+        (90.0, FovAxis::X)
+    } else {
+        fov_desc(&mut p, o)?
     };
     let near_clip = p.float("near_clip", 0.01)?;
     let far_clip = p.float("far_clip", 1e4)?;
