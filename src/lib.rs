@@ -17,6 +17,7 @@ pub mod geometry;
 pub mod integrator;
 pub mod io;
 pub mod material;
+pub mod math;
 pub mod progressive;
 pub mod render;
 pub mod sampler;

@@ -20,9 +20,9 @@
 //! - Without visible sampling: D(m) cos θ_m, sampled in slope space (Walter et al. 2007 §5.2
 //!   eqs. 28 and 35, anisotropic by stretching the slopes).
 
-use crate::study::stats::erfc;
+use crate::math::erfc;
+use crate::sampling::square_to_uniform_disk_concentric;
 use glam::{Vec2, Vec3};
-use std::f32::consts::PI;
 
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum MicrofacetType {
@@ -216,24 +216,33 @@ impl Microfacet {
         Vec3::new(-sx as f32, -sy as f32, 1.0).normalize()
     }
 
-    /// Heitz 2018, Listing 1: GGX visible normals by sampling the projected hemisphere of
-    /// the stretched incident direction.
+    /// GGX visible normals by sampling the projected hemisphere of the stretched incident
+    /// direction (Heitz 2018), with the unit square mapped onto the disk concentrically and
+    /// the slope rotated to the incident azimuth, as Mitsuba 3 does: the same map from the
+    /// square to normals as Mitsuba's, so that tables integrated over it by Gauss–Legendre
+    /// quadrature (roughplastic) come out as Mitsuba's.
     fn sample_visible_ggx(&self, wi: Vec3, u: Vec2) -> Vec3 {
-        let vh = Vec3::new(self.alpha_u * wi.x, self.alpha_v * wi.y, wi.z).normalize();
-        let lensq = vh.x * vh.x + vh.y * vh.y;
-        let t1 = if lensq > 0.0 {
-            Vec3::new(-vh.y, vh.x, 0.0) / lensq.sqrt()
+        let (au, av) = (self.alpha_u as f64, self.alpha_v as f64);
+        let s = glam::DVec3::new(au * wi.x as f64, av * wi.y as f64, wi.z as f64).normalize();
+        let sin_t = (s.x * s.x + s.y * s.y).sqrt();
+        let (cos_phi, sin_phi) = if sin_t > 0.0 {
+            (s.x / sin_t, s.y / sin_t)
         } else {
-            Vec3::X
+            (1.0, 0.0)
         };
-        let t2 = vh.cross(t1);
-        let r = u.x.sqrt();
-        let phi = 2.0 * PI * u.y;
-        let p1 = r * phi.cos();
-        let s = 0.5 * (1.0 + vh.z);
-        let p2 = (1.0 - s) * (1.0 - p1 * p1).max(0.0).sqrt() + s * r * phi.sin();
-        let nh = p1 * t1 + p2 * t2 + (1.0 - p1 * p1 - p2 * p2).max(0.0).sqrt() * vh;
-        Vec3::new(self.alpha_u * nh.x, self.alpha_v * nh.y, nh.z.max(0.0)).normalize()
+        let cos_t = s.z;
+        // A point of the projected hemisphere of the stretched wi (α = 1, wi in the xz plane).
+        let p = square_to_uniform_disk_concentric(u).as_dvec2();
+        let lerp = 0.5 * (1.0 + cos_t);
+        let y = (1.0 - lerp) * (1.0 - p.x * p.x).max(0.0).sqrt() + lerp * p.y;
+        let x = p.x;
+        let z = (1.0 - x * x - y * y).max(0.0).sqrt();
+        // Its slope, rotated to the incident azimuth and unstretched.
+        let norm = 1.0 / (sin_t * y + cos_t * z);
+        let (slope_x, slope_y) = ((cos_t * y - sin_t * z) * norm, x * norm);
+        let sx = au * (cos_phi * slope_x - sin_phi * slope_y);
+        let sy = av * (sin_phi * slope_x + cos_phi * slope_y);
+        glam::DVec3::new(-sx, -sy, 1.0).normalize().as_vec3()
     }
 
     /// Heitz and d'Eon 2014: Beckmann visible normals via the visible slopes of the

@@ -9,14 +9,15 @@
 //!   R' = R / (1 − R Fdr_int) (the geometric series of bounces between base and coating,
 //!   which also shifts colours). Fdr_int is the cosine-weighted average internal Fresnel
 //!   reflectance at 1/η (Weidlich and Wilkie 2007, "Arbitrarily Layered Micro-Facet
-//!   Surfaces"; Mitsuba's documented plastic model), computed by quadrature.
+//!   Surfaces"; Mitsuba's documented plastic model), by the published fits Mitsuba uses
+//!   ([`super::fresnel::diffuse_fresnel_reflectance_fit`]).
 //!
 //! Sampling picks the specular lobe with probability ∝ F(cos θi) · w_s against
 //! (1 − F(cos θi)) (1 − w_s), with w_s = mean(specular_reflectance) divided by the sum
 //! mean(specular_reflectance) + mean(diffuse_reflectance), as Mitsuba does. eval and pdf
 //! cover the diffuse (smooth) lobe only; the delta lobe is reported by `sample` with `delta` set. One-sided.
 
-use super::fresnel::{diffuse_fresnel_reflectance, fresnel_dielectric};
+use super::fresnel::{diffuse_fresnel_reflectance_fit, fresnel_dielectric};
 use super::{BsdfSample, Spectrum};
 use crate::sampling::{square_to_cosine_hemisphere, square_to_cosine_hemisphere_pdf};
 use glam::{Vec2, Vec3};
@@ -83,7 +84,7 @@ impl Plastic {
             diffuse_reflectance,
             specular_reflectance,
             nonlinear,
-            fdr_int: diffuse_fresnel_reflectance(1.0 / eta as f64) as f32,
+            fdr_int: diffuse_fresnel_reflectance_fit(1.0 / eta as f64) as f32,
             specular_sampling_weight: specular_sampling_weight(
                 specular_reflectance,
                 diffuse_reflectance,

@@ -4,6 +4,7 @@
 //! other materials by index. Equal BSDF descriptions (a `<bsdf id>` used by many shapes)
 //! become one material, and a bitmap used by several textures is loaded once.
 
+use crate::bsdf::roughplastic::CoatingTables;
 use crate::bsdf::{
     Bsdf, BsdfParam, Conductor, Dielectric, Diffuse, Microfacet, MicrofacetType, Plastic,
     Principled, PrincipledParams, PrincipledThin, PrincipledThinParams, RoughConductor,
@@ -29,6 +30,8 @@ pub struct MaterialBuilder {
     /// Bitmaps already loaded, by file, `raw` and storage format: an image shared by
     /// several textures (or emitters) is read and stored once.
     images: Vec<((PathBuf, bool, Format), Arc<TexImage>)>,
+    /// roughplastic's coating tables, by distribution and η (they take ~0.1 s each).
+    coatings: Vec<((Microfacet, f32), CoatingTables)>,
 }
 
 impl MaterialBuilder {
@@ -222,12 +225,27 @@ impl MaterialBuilder {
             } => {
                 // The description guarantees a numeric roughness.
                 let a = distribution.alpha_u.constant_scalar().unwrap_or(0.1) as f32;
-                Bsdf::RoughPlastic(RoughPlastic::new(
-                    microfacet(distribution, a, a),
-                    (int_ior / ext_ior) as f32,
+                let (distribution, eta) =
+                    (microfacet(distribution, a, a), (int_ior / ext_ior) as f32);
+                let tables = match self
+                    .coatings
+                    .iter()
+                    .find(|(k, _)| *k == (distribution, eta))
+                {
+                    Some((_, t)) => t.clone(),
+                    None => {
+                        let t = CoatingTables::new(&distribution, eta);
+                        self.coatings.push(((distribution, eta), t.clone()));
+                        t
+                    }
+                };
+                Bsdf::RoughPlastic(RoughPlastic::with_tables(
+                    distribution,
+                    eta,
                     param(self, P::DiffuseReflectance, diffuse_reflectance)?,
                     param(self, P::SpecularReflectance, specular_reflectance)?,
                     *nonlinear,
+                    &tables,
                 ))
             }
             _ => unreachable!("adapters are built by MaterialBuilder::build"),
