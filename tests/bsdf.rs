@@ -463,6 +463,96 @@ fn chi2_sampling_matches_pdf() {
     check_chi2(chi2_jobs(&cases));
 }
 
+/// Mitsuba's adapters around smooth BSDFs, with constant and bitmap parameters looked up at
+/// uv = (0.5, 0.5): the mask's pass-through events are delta samples (left out: the pdf must
+/// integrate to the fraction that is not), blends of reflective and transmissive BSDFs,
+/// twosided with a different BSDF on each side, normal maps tilting the frame, a bump map.
+fn adapter_cases() -> Vec<Case> {
+    let rc = |dist: &str, a: f32| rough("roughconductor", dist, a, "");
+    vec![
+        case(
+            "mask",
+            &format!(
+                r#"<bsdf type="mask"><float name="opacity" value="0.4"/>{}</bsdf>"#,
+                rc("ggx", 0.2)
+            ),
+            0.2,
+        ),
+        case(
+            "blendbsdf",
+            &format!(
+                r#"<bsdf type="blendbsdf"><float name="weight" value="0.3"/><bsdf type="diffuse"/>{}</bsdf>"#,
+                rc("beckmann", 0.1)
+            ),
+            0.1,
+        ),
+        case(
+            "blendbsdf textured, transmissive",
+            r#"<bsdf type="blendbsdf"><texture type="bitmap" name="weight"><string name="filename" value="data/textures/grey8.png"/></texture><bsdf type="roughplastic"/><bsdf type="roughdielectric"><string name="distribution" value="ggx"/><float name="alpha" value="0.3"/></bsdf></bsdf>"#,
+            0.1,
+        ),
+        case(
+            "twosided front/back",
+            &format!(
+                r#"<bsdf type="twosided"><bsdf type="diffuse"/>{}</bsdf>"#,
+                rc("ggx", 0.3)
+            ),
+            0.3,
+        ),
+        case(
+            "normalmap roughconductor",
+            &format!(
+                r#"<bsdf type="normalmap"><texture type="rawconstant" name="normalmap"><vector name="value" x="0.7" y="0.4" z="0.9"/></texture>{}</bsdf>"#,
+                rc("ggx", 0.3)
+            ),
+            0.3,
+        ),
+        case(
+            "normalmap diffuse",
+            r#"<bsdf type="normalmap"><texture type="rawconstant" name="normalmap"><vector name="value" x="0.3" y="0.6" z="0.8"/></texture><bsdf type="diffuse"/></bsdf>"#,
+            f32::INFINITY,
+        ),
+        case(
+            "bumpmap",
+            &format!(
+                r#"<bsdf type="bumpmap"><texture type="bitmap"><string name="filename" value="data/textures/grey8.png"/><boolean name="raw" value="true"/></texture><float name="scale" value="0.05"/>{}</bsdf>"#,
+                rc("beckmann", 0.2)
+            ),
+            0.2,
+        ),
+    ]
+}
+
+#[test]
+fn chi2_adapters_match_pdf() {
+    let cases = adapter_cases();
+    check_chi2(chi2_jobs(&cases));
+}
+
+/// A `null` BSDF and a fully transparent mask let light through unchanged: eval and pdf are
+/// 0, every sample is the delta pass-through wo = −wi with weight 1.
+#[test]
+fn null_and_transparent_mask_pass_light_through() {
+    for xml in [
+        r#"<bsdf type="null"/>"#,
+        r#"<bsdf type="mask"><float name="opacity" value="0"/><bsdf type="diffuse"/></bsdf>"#,
+    ] {
+        let b = bsdf_from_xml(xml);
+        let mut rng = SampleStream::new(8, 0, 0);
+        for _ in 0..100 {
+            let wi = penumbra::sampling::square_to_uniform_sphere(rng.next_2d());
+            let wo = penumbra::sampling::square_to_uniform_sphere(rng.next_2d());
+            assert_eq!((b.eval(wi, wo), b.pdf(wi, wo)), (Vec3::ZERO, 0.0), "{xml}");
+            let bs = b.sample(wi, rng.next_1d(), rng.next_2d()).expect(xml);
+            assert!(
+                bs.delta && bs.wo == -wi && bs.weight == Vec3::ONE,
+                "{xml}: {bs:?}"
+            );
+            assert!(!b.has_smooth_lobe(wi), "{xml}");
+        }
+    }
+}
+
 /// Runs the chi-square jobs (those CHI2_FILTER selects) and fails on any p-value below the
 /// Šidák-corrected α = 0.01 over all of them, or a pdf that does not integrate to the
 /// fraction of samples that landed.
