@@ -54,6 +54,15 @@ impl Error {
             message: message.into(),
         }
     }
+
+    /// `e` placed at `location`, unless it already names a place in the scene (the more
+    /// precise one, e.g. the `<texture>` inside a `<shape>`) or a file.
+    pub fn within(location: &Location, e: Error) -> Self {
+        match e {
+            Error::Invalid(message) => Error::scene(location, message),
+            other => other,
+        }
+    }
 }
 
 pub type Result<T, E = Error> = std::result::Result<T, E>;

@@ -71,7 +71,7 @@ pub fn build(desc: &SceneDescription) -> Result<Scene> {
         let shape_index = shapes.len() as u32;
         let material = materials
             .material(&sd.bsdf)
-            .map_err(|e| Error::scene(&sd.location, e.to_string()))?;
+            .map_err(|e| Error::within(&sd.location, e))?;
         shapes.push(Shape {
             geometry,
             material,
@@ -82,7 +82,7 @@ pub fn build(desc: &SceneDescription) -> Result<Scene> {
             Some(EmitterDesc::Area { radiance }) => {
                 let mut radiance = materials
                     .texture(radiance)
-                    .map_err(|e| Error::scene(&sd.location, e.to_string()))?;
+                    .map_err(|e| Error::within(&sd.location, e))?;
                 if let crate::texture::Texture::Bitmap(b) = &mut radiance {
                     b.prepare_sampling();
                 }
@@ -113,7 +113,7 @@ pub fn build(desc: &SceneDescription) -> Result<Scene> {
             let geometry = shape_geometry(sd, DMat4::IDENTITY, &mut warnings)?;
             let material = materials
                 .material(&sd.bsdf)
-                .map_err(|e| Error::scene(&sd.location, e.to_string()))?;
+                .map_err(|e| Error::within(&sd.location, e))?;
             shapes.push(Shape {
                 geometry,
                 material,
