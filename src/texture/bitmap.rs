@@ -60,9 +60,6 @@ use half::f16;
 use std::path::Path;
 use std::sync::Arc;
 
-/// Mitsuba's luminance weights for linear sRGB (`mitsuba::luminance`).
-pub const LUMINANCE: [f32; 3] = [0.212671, 0.715160, 0.072169];
-
 /// `filter_type`.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, Default)]
 pub enum Filter {
@@ -373,7 +370,7 @@ impl TexImage {
 
 #[inline]
 fn luminance(c: [f32; 3]) -> f32 {
-    c[0] * LUMINANCE[0] + c[1] * LUMINANCE[1] + c[2] * LUMINANCE[2]
+    crate::spectrum::luminance(glam::Vec3::from_array(c))
 }
 
 /// a·b + c rounded once, as a fused multiply-add (the product of two f32 is exact in f64;
@@ -970,7 +967,7 @@ mod tests {
         };
         let t = TexImage::from_image(img, false, Format::Auto);
         assert_eq!(t.mean_rgb(), Vec3::new(0.5, 0.25, 0.5));
-        let lum = LUMINANCE[0] * 0.5 + LUMINANCE[1] * 0.25 + LUMINANCE[2] * 0.5;
+        let lum = 0.212671 * 0.5 + 0.715160 * 0.25 + 0.072169 * 0.5; // Mitsuba's weights
         assert!((t.mean() - lum).abs() < 1e-7);
         let g = TexImage::from_image(grey(2, Samples::U8(vec![255, 0])), false, Format::Auto);
         assert_eq!((g.mean(), g.mean_rgb()), (0.5, Vec3::splat(0.5)));
