@@ -15,6 +15,7 @@ fn cornell(c: &mut Criterion) {
         spp,
         seed: 0,
         threads: None,
+        sampler: None,
         first_sample: 0,
     };
     let mut group = c.benchmark_group("cornell-box");

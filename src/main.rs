@@ -70,7 +70,8 @@ struct ConvergeArgs {
     #[arg(long, value_name = "N")]
     reference_spp: Option<f64>,
     /// The ladder: cumulative samples per pixel, each step continuing the previous one's
-    /// samples. `a,b,...,n` continues the progression of ratio b/a up to n.
+    /// samples (with stratified, multijitter, orthogonal and ldsampler: each step a render
+    /// of its own at that count). `a,b,...,n` continues the progression of ratio b/a up to n.
     #[arg(long, value_name = "LIST", default_value = penumbra::study::experiment::DEFAULT_SPP)]
     spp: String,
     /// Independent ladders with seeds s, s+1, ..., s+K-1: mean and spread per step.
@@ -80,7 +81,7 @@ struct ConvergeArgs {
     #[arg(long)]
     seed: Option<u64>,
     /// Sweep one scene parameter: NAME=v1,v2,... (a <default> of the scene, as -D sets it;
-    /// or the path integrator's max_depth / rr_depth).
+    /// the path integrator's max_depth / rr_depth; or `sampler=independent,stratified,...`).
     #[arg(long, value_name = "NAME=V1,V2,...")]
     sweep: Option<String>,
     /// Set a scene parameter declared with <default name=...>, like Mitsuba's -D.
@@ -193,12 +194,11 @@ fn run_render(args: RenderArgs) -> Result<()> {
         .collect::<Result<Vec<_>>>()?;
     let desc = Scene::load_description(&args.scene, &defines)?;
     let scene_hash = progressive::scene_hash(&desc);
-    let scene = penumbra::scene::build::build(&desc)?;
+    let mut scene = penumbra::scene::build::build(&desc)?;
     for w in &scene.warnings {
         eprintln!("warning: {w}");
     }
-    let spp = args.spp.unwrap_or(scene.sample_count);
-    if spp == 0 {
+    if args.spp == Some(0) {
         bail!("--spp must be at least 1");
     }
     if let Some(t) = args.target_rel_error {
@@ -226,6 +226,23 @@ fn run_render(args: RenderArgs) -> Result<()> {
         )?)
     } else {
         None
+    };
+    // The sampler's points per pass: `--spp` sets them as Mitsuba's render(spp=...) does
+    // (rounded by the plugin); a resumed render keeps the checkpoint's, so that its further
+    // samples continue the same passes.
+    let spp = match (&resume, args.spp) {
+        (Some(checkpoint), spp) => {
+            scene.sampler.sample_count = checkpoint.sampler_points;
+            spp.unwrap_or(scene.sample_count)
+        }
+        (None, Some(spp)) => {
+            let (rounded, warning) = scene.set_sample_count(spp);
+            if let Some(w) = warning {
+                eprintln!("warning: {w} (--spp)");
+            }
+            rounded
+        }
+        (None, None) => scene.sample_count,
     };
     let settings = progressive::ProgressiveSettings {
         spp,
@@ -554,6 +571,7 @@ fn run_converge(args: ConvergeArgs) -> Result<()> {
             values: s.values.clone(),
             mode: match mode {
                 Some(SweepMode::Integrator) => "integrator".into(),
+                Some(SweepMode::Sampler) => "sampler".into(),
                 _ => "define".into(),
             },
         }),

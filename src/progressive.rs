@@ -158,6 +158,7 @@ pub fn render_progressive(
                 spp,
                 seed: settings.seed,
                 threads: settings.threads,
+                sampler: None,
                 first_sample: progress.samples,
             },
             &|_, _| {},
@@ -210,20 +211,24 @@ pub struct Checkpoint {
     pub scene_hash: u64,
     pub seed: u64,
     pub pass_spp: u32,
+    /// The sampler's points per pass ([`crate::sampler::Sampler::sample_count`]): a resumed
+    /// render continues with the same passes.
+    pub sampler_points: u32,
     pub samples: u64,
     pub stats: RenderStats,
     pub film: Film,
 }
 
-const MAGIC: &[u8; 8] = b"PNBRCKP1";
+const MAGIC: &[u8; 8] = b"PNBRCKP2";
 
 impl Checkpoint {
-    fn from_progress(p: &Progress, s: &ProgressiveSettings, pass_spp: u32, _scene: &Scene) -> Self {
+    fn from_progress(p: &Progress, s: &ProgressiveSettings, pass_spp: u32, scene: &Scene) -> Self {
         Checkpoint {
             version: crate::VERSION.to_string(),
             scene_hash: s.scene_hash,
             seed: s.seed,
             pass_spp,
+            sampler_points: scene.sampler.sample_count,
             samples: p.samples,
             stats: p.stats,
             film: p.film.clone(),
@@ -257,6 +262,12 @@ impl Checkpoint {
         {
             return refuse("for another resolution".into());
         }
+        if self.sampler_points != scene.sampler.sample_count {
+            return refuse(format!(
+                "with {} sampler points per pass (this render uses {})",
+                self.sampler_points, scene.sampler.sample_count
+            ));
+        }
         Ok(())
     }
 
@@ -282,6 +293,7 @@ impl Checkpoint {
             buf.extend_from_slice(&x.to_le_bytes());
         }
         buf.extend_from_slice(&self.pass_spp.to_le_bytes());
+        buf.extend_from_slice(&self.sampler_points.to_le_bytes());
         let st = &self.stats;
         for x in [
             st.paths,
@@ -347,6 +359,7 @@ impl Checkpoint {
             .filter(|&n| n <= crate::scene::description::MAX_PIXELS);
         let pixels = pixels.ok_or_else(|| bad("resolution"))? as usize;
         let pass_spp = r.u32().ok_or_else(|| bad("truncated"))?;
+        let sampler_points = r.u32().ok_or_else(|| bad("truncated"))?;
         let mut u = || r.u64().ok_or_else(|| bad("truncated"));
         let (paths, rays, bounces, rr, nonfinite) = (u()?, u()?, u()?, u()?, u()?);
         let seconds = r.f64().ok_or_else(|| bad("truncated"))?;
@@ -366,6 +379,7 @@ impl Checkpoint {
             scene_hash,
             seed,
             pass_spp,
+            sampler_points,
             samples,
             stats: RenderStats {
                 paths,

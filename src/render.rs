@@ -1,12 +1,11 @@
 //! The render driver: the image is cut into tiles, rendered in parallel by rayon, and the
-//! tiles' film sums are merged in a fixed order. Every pixel sample draws from its own
-//! random stream keyed by (seed, pixel, sample index), so the result is bit-identical for
-//! any number of threads.
+//! tiles' film sums are merged in a fixed order. Every pixel sample draws from the scene's
+//! sampler keyed by (seed, pixel, sample index), so the result is bit-identical for any
+//! number of threads.
 
 use crate::error::{Error, Result};
 use crate::film::{Film, FilmTile};
 use crate::integrator::PathStats;
-use crate::sampler::SampleStream;
 use crate::scene::Scene;
 use glam::Vec2;
 use rayon::prelude::*;
@@ -26,6 +25,9 @@ pub struct RenderSettings {
     pub seed: u64,
     /// Worker threads; `None` for rayon's default (one per core).
     pub threads: Option<usize>,
+    /// The sampler, if not the scene's (a convergence ladder renders each step with the
+    /// sampler's points per pass set to that step's spp).
+    pub sampler: Option<crate::sampler::Sampler>,
 }
 
 /// What a render measured besides the image.
@@ -65,12 +67,17 @@ fn render_tile(scene: &Scene, settings: &RenderSettings, x0: usize, y0: usize) -
     let mut stats = PathStats::default();
     let mut nonfinite = 0;
     let inv_res = Vec2::new(1.0 / scene.width as f32, 1.0 / scene.height as f32);
+    let sampler = settings.sampler.unwrap_or(scene.sampler);
     for y in y0..y0 + h {
         for x in x0..x0 + w {
-            let pixel = (y * scene.width + x) as u64;
+            let size = (scene.width as u32, scene.height as u32);
             for s in 0..settings.spp as u64 {
-                let mut sampler =
-                    SampleStream::new(settings.seed, pixel, settings.first_sample + s);
+                let mut sampler = sampler.stream(
+                    settings.seed,
+                    (x as u32, y as u32),
+                    size,
+                    settings.first_sample + s,
+                );
                 // Mitsuba's sampler dimension order: pixel position, then aperture.
                 let pos = Vec2::new(x as f32, y as f32) + sampler.next_2d();
                 let ray = if scene.camera.needs_aperture_sample() {

@@ -53,6 +53,7 @@ fn every_fuzzer_found_input_loads_or_fails_cleanly() {
                     spp: 1,
                     seed: 0,
                     threads: Some(1),
+                    sampler: None,
                     first_sample: 0,
                 };
                 render(&scene, &settings, &|_, _| {}).expect("render of a loaded scene");

@@ -4,6 +4,7 @@
 
 use glam::{DMat4, DVec3, DVec4};
 use penumbra::camera::FovAxis;
+use penumbra::sampler::SamplerKind;
 use penumbra::scene::build::build;
 use penumbra::scene::description::{
     from_xml, BsdfDesc, EmitterDesc, FilterDesc, IntegratorDesc, SamplerDesc, SceneDescription,
@@ -731,6 +732,7 @@ fn independent_sampler() {
     assert_eq!(
         absent,
         SamplerDesc {
+            kind: SamplerKind::Independent,
             sample_count: 4,
             seed: 0
         }
@@ -745,6 +747,7 @@ fn independent_sampler() {
     assert_eq!(
         empty,
         SamplerDesc {
+            kind: SamplerKind::Independent,
             sample_count: 4,
             seed: 0
         }
@@ -763,10 +766,72 @@ fn independent_sampler() {
     assert_eq!(
         given,
         SamplerDesc {
+            kind: SamplerKind::Independent,
             sample_count: 64,
             seed: 1234
         }
     );
+}
+
+/// Mitsuba's samplers with their parameters, and penumbra's zsobol.
+#[test]
+fn mitsuba_samplers() {
+    let sampler = |xml: &str| {
+        desc(&sensor_scene(
+            &format!("<float name=\"fov\" value=\"30\"/>\n    {xml}"),
+            "",
+            r#"<rfilter type="box"/>"#,
+        ))
+        .sensor
+        .sampler
+    };
+    let cases = [
+        (
+            r#"<sampler type="stratified"><integer name="sample_count" value="10"/></sampler>"#,
+            SamplerKind::Stratified { jitter: true },
+            10,
+        ),
+        (
+            r#"<sampler type="stratified"><boolean name="jitter" value="false"/></sampler>"#,
+            SamplerKind::Stratified { jitter: false },
+            4,
+        ),
+        (
+            r#"<sampler type="multijitter"><boolean name="jitter" value="false"/></sampler>"#,
+            SamplerKind::Multijitter { jitter: false },
+            4,
+        ),
+        (
+            r#"<sampler type="orthogonal"><integer name="strength" value="3"/><integer name="sample_count" value="49"/></sampler>"#,
+            SamplerKind::Orthogonal {
+                strength: 3,
+                jitter: true,
+            },
+            49,
+        ),
+        (r#"<sampler type="ldsampler"/>"#, SamplerKind::LdSampler, 4),
+        (
+            r#"<sampler type="zsobol"><integer name="sample_count" value="64"/></sampler>"#,
+            SamplerKind::ZSobol,
+            64,
+        ),
+    ];
+    for (xml, kind, sample_count) in cases {
+        let d = sampler(xml);
+        assert_eq!((d.kind, d.sample_count), (kind, sample_count), "{xml}");
+    }
+    // the built scene rounds the count as Mitsuba does, and says so
+    let scene = build(&desc(&sensor_scene(
+        r#"<float name="fov" value="30"/><sampler type="stratified"><integer name="sample_count" value="10"/></sampler>"#,
+        "",
+        r#"<rfilter type="box"/>"#,
+    )))
+    .unwrap();
+    assert_eq!((scene.sample_count, scene.sampler.sample_count), (16, 16));
+    assert!(scene
+        .warnings
+        .iter()
+        .any(|w| w.contains("stratified sampler rounds sample_count 10 to 16")));
 }
 
 #[test]
@@ -779,9 +844,19 @@ fn sampler_errors() {
         )
     };
     assert_error(
-        &case(r#"<sampler type="stratified"/>"#),
+        &case(r#"<sampler type="halton"/>"#),
         "<sampler",
-        &["unsupported plugin <sampler type=\"stratified\">"],
+        &["unsupported plugin <sampler type=\"halton\">"],
+    );
+    assert_error(
+        &case(r#"<sampler type="orthogonal"><integer name="strength" value="1"/></sampler>"#),
+        "<sampler",
+        &["strength must be between 2 and 8, got 1"],
+    );
+    assert_error(
+        &case(r#"<sampler type="ldsampler"><boolean name="jitter" value="false"/></sampler>"#),
+        "name=\"jitter\"",
+        &["unknown parameter 'jitter' (boolean) of <sampler type=\"ldsampler\">"],
     );
     assert_error(
         &case(r#"<sampler type="independent"><integer name="sample_count" value="0"/></sampler>"#),
@@ -1572,6 +1647,7 @@ fn whole_scene_defaults_are_mitsubas() {
     assert_eq!(
         d.sensor.sampler,
         SamplerDesc {
+            kind: SamplerKind::Independent,
             sample_count: 4,
             seed: 0
         }

@@ -41,6 +41,7 @@ fn a_continued_render_adds_up_to_the_uninterrupted_one() {
                 spp,
                 seed: 9,
                 threads: None,
+                sampler: None,
                 first_sample,
             },
             &|_, _| {},

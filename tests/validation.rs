@@ -31,7 +31,7 @@ fn landed_scenes_match_mitsuba() {
     let mut failures = Vec::new();
     for entry in landed {
         let steps = spp_ladder(entry.test_spp);
-        let r = validate_scene(&root, entry, &steps, SEED, None, &mut |_| {})
+        let r = validate_scene(&root, entry, &steps, SEED, None, None, &mut |_| {})
             .unwrap_or_else(|e| panic!("{}: {e}", entry.name));
         let last = r.study.last().expect("steps");
         eprintln!(

@@ -137,6 +137,7 @@ fn time_render(scene: &Scene, spp: u32, threads: Option<usize>) -> f64 {
         spp,
         seed: 1,
         threads,
+        sampler: None,
         first_sample: 0,
     };
     render(scene, &s, &|_, _| {}).expect("render").stats.seconds

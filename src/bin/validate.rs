@@ -4,13 +4,15 @@
 //! scene in `validation/plots/`. Exits with status 1 if any check fails.
 //!
 //!     cargo run --release --bin validate [-- --scene NAME ...] [--max-spp N]
+//!         [--sampler independent,stratified,... --report R.md --plots DIR]
 
 use anyhow::{bail, Context, Result};
 use clap::Parser;
+use penumbra::sampler::SamplerKind;
 use penumbra::study::convergence::spp_ladder;
 use penumbra::study::plot::{write_convergence_png, ConvergencePlot};
 use penumbra::study::validation::{
-    load_scene_list, report_markdown, validate_scene, ReportContext, SceneResult,
+    load_scene_list, report_markdown, validate_scene, ReportContext, SceneResult, ValidationScene,
 };
 use std::path::{Path, PathBuf};
 use std::time::{Instant, SystemTime, UNIX_EPOCH};
@@ -43,6 +45,76 @@ struct Args {
     /// Plot directory, relative to the root.
     #[arg(long, default_value = "validation/plots")]
     plots: PathBuf,
+    /// Render every scene with these samplers instead of its own, one after the other
+    /// (a comma list of independent, stratified, multijitter, orthogonal, ldsampler,
+    /// zsobol); with more than one the report adds each sampler's efficiency against the
+    /// first. Give --report and --plots elsewhere to keep the committed report.
+    #[arg(long, value_name = "NAME,...", value_delimiter = ',')]
+    sampler: Vec<String>,
+}
+
+/// Each sampler's efficiency against the first at 64 and 1024 spp (or the ladder's top):
+/// (t₁ · MSE₁) / (t · MSE), with the MSE net of the reference's noise floor (MSE − floor²),
+/// which an image at the floor cannot go below.
+fn efficiency_table(
+    results: &[SceneResult],
+    samplers: &[Option<SamplerKind>],
+    scenes: &[&ValidationScene],
+) -> String {
+    let k = samplers.len();
+    let names: Vec<&str> = samplers
+        .iter()
+        .map(|s| s.map_or("scene's", |k| k.name()))
+        .collect();
+    let mut out = format!(
+        "\n## Efficiency by sampler\n\nEfficiency of each sampler relative to `{}`: \
+         (t₁ · MSE₁) / (t · MSE) at the ladder step of that spp (orthogonal: the count it \
+         rounds to), MSE net of the reference's noise floor (MSE − floor²; a cell marked * has \
+         MSE < 2 floor², where the net value is mostly noise). Times are each render's own \
+         sampling time, measured back to back on the same machine.\n\n| scene | spp |",
+        names[0]
+    );
+    for n in &names {
+        out.push_str(&format!(" {n} |"));
+    }
+    out.push_str(&format!("\n|---|---:|{}\n", "---:|".repeat(k)));
+    for (i, scene) in scenes.iter().enumerate() {
+        let group = &results[i * k..(i + 1) * k];
+        for target in [64u32, 1024] {
+            let cell = |r: &SceneResult| {
+                let floor2 = r.study.slope.floor * r.study.slope.floor;
+                // the first step at or above the target (orthogonal rounds 64 to 121)
+                r.study
+                    .ladder
+                    .steps
+                    .iter()
+                    .find(|st| st.spp >= target && st.spp < target * 2)
+                    .map(|st| {
+                        let mse = st.metrics.rmse * st.metrics.rmse;
+                        (
+                            st.seconds * (mse - floor2).max(1e-3 * mse),
+                            mse < 2.0 * floor2,
+                        )
+                    })
+            };
+            let Some((base, _)) = cell(&group[0]) else {
+                continue;
+            };
+            out.push_str(&format!("| {} | {target} |", scene.name));
+            for r in group {
+                match cell(r) {
+                    Some((cost, at_floor)) => out.push_str(&format!(
+                        " {:.2}{} |",
+                        base / cost,
+                        if at_floor { "*" } else { "" }
+                    )),
+                    None => out.push_str(" – |"),
+                }
+            }
+            out.push('\n');
+        }
+    }
+    out
 }
 
 /// Proleptic Gregorian (year, month, day) of a count of days since 1970-01-01 (the
@@ -162,6 +234,23 @@ fn run() -> Result<()> {
         }
         v
     };
+    let samplers: Vec<Option<SamplerKind>> = if args.sampler.is_empty() {
+        vec![None]
+    } else {
+        args.sampler
+            .iter()
+            .map(|name| {
+                SamplerKind::from_name(name.trim())
+                    .map(Some)
+                    .with_context(|| {
+                        format!(
+                            "unknown sampler '{name}' (independent, stratified, multijitter, \
+                         orthogonal, ldsampler, zsobol)"
+                        )
+                    })
+            })
+            .collect::<Result<_>>()?
+    };
     let steps = spp_ladder(args.max_spp);
     if steps.len() < 2 {
         bail!("--max-spp must be at least 4 (a ladder needs two steps)");
@@ -176,21 +265,41 @@ fn run() -> Result<()> {
 
     let start = Instant::now();
     let mut results: Vec<SceneResult> = Vec::new();
-    for entry in &selected {
+    for (entry, sampler) in selected
+        .iter()
+        .flat_map(|e| samplers.iter().map(move |s| (e, *s)))
+    {
         let steps = match entry.max_spp {
             Some(m) if m < args.max_spp => spp_ladder(m),
             _ => steps.clone(),
         };
         eprintln!("{}: ladder {:?}", entry.name, steps);
+        // with several samplers each result is named "scene (sampler)"
+        let mut entry = (*entry).clone();
+        if samplers.len() > 1 {
+            entry.name = format!("{} ({})", entry.name, sampler.map_or("", |k| k.name()));
+        }
+        let entry = &entry;
         let name = entry.name.clone();
-        let r = validate_scene(root, entry, &steps, args.seed, args.threads, &mut |s| {
-            eprintln!(
-                "  {name}: {:>6} spp  {:>8.2} s  RMSE {:.4e}  relMSE {:.4e}",
-                s.spp, s.seconds, s.metrics.rmse, s.metrics.rel_mse
-            )
-        })
+        let r = validate_scene(
+            root,
+            entry,
+            &steps,
+            args.seed,
+            args.threads,
+            sampler,
+            &mut |s| {
+                eprintln!(
+                    "  {name}: {:>6} spp  {:>8.2} s  RMSE {:.4e}  relMSE {:.4e}",
+                    s.spp, s.seconds, s.metrics.rmse, s.metrics.rel_mse
+                )
+            },
+        )
         .with_context(|| format!("scene {}", entry.name))?;
-        let plot_path = plots_dir.join(format!("{}.png", entry.name));
+        let plot_path = plots_dir.join(format!(
+            "{}.png",
+            entry.name.replace(" (", "-").replace(')', "")
+        ));
         let title = format!(
             "{}: penumbra vs. Mitsuba {} ({} spp reference)",
             entry.name,
@@ -237,7 +346,10 @@ fn run() -> Result<()> {
         total_seconds: start.elapsed().as_secs_f64(),
         plots_dir: relative_to(&plots_dir, report_dir),
     };
-    let md = report_markdown(&results, &list, &ctx);
+    let mut md = report_markdown(&results, &list, &ctx);
+    if samplers.len() > 1 {
+        md.push_str(&efficiency_table(&results, &samplers, &selected));
+    }
     std::fs::write(&report_path, md)
         .with_context(|| format!("cannot write {}", report_path.display()))?;
     eprintln!(

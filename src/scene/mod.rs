@@ -31,8 +31,11 @@ pub struct Scene {
     pub width: usize,
     pub height: usize,
     pub filter: Filter,
-    /// The sampler's `sample_count` (the CLI's `--spp` overrides it).
+    /// The sampler's `sample_count` after its rounding (the CLI's `--spp` overrides it).
     pub sample_count: u32,
+    /// The sampler; its point count per pass is `sample_count` unless a render sets another
+    /// ([`Scene::set_sample_count`]).
+    pub sampler: crate::sampler::Sampler,
     /// The sampler's `seed`.
     pub seed: u64,
     pub integrator: Integrator,
@@ -45,6 +48,15 @@ pub struct Scene {
 }
 
 impl Scene {
+    /// Makes the sampler draw passes of `spp` points, rounded as the plugin does (Mitsuba's
+    /// `set_sample_count`, which its `render(spp=...)` calls); returns the rounded count and
+    /// a warning when rounding changed it.
+    pub fn set_sample_count(&mut self, spp: u32) -> (u32, Option<String>) {
+        let (sampler, warning) = crate::sampler::Sampler::new(self.sampler.kind, spp);
+        self.sampler = sampler;
+        (sampler.sample_count, warning)
+    }
+
     /// Loads a Mitsuba XML file with `-D name=value` overrides and builds it.
     pub fn load(path: &Path, defines: &[(String, String)]) -> Result<Scene> {
         build::build(&Self::load_description(path, defines)?)

@@ -1,7 +1,9 @@
-//! Convergence studies: a scene rendered progressively along a ladder of sample counts
-//! (1, 4, 16, ... spp), each step continuing the previous one's samples, with the wall time
-//! and the error against a reference image at every step, and the fitted slope of
-//! log RMSE against log spp.
+//! Convergence studies: a scene rendered along a ladder of sample counts (1, 4, 16, ...
+//! spp), with the wall time and the error against a reference image at every step, and the
+//! fitted slope of log RMSE against log spp. With the `independent` and `zsobol` samplers
+//! each step continues the previous one's samples; with the samplers that need their point
+//! count up front (stratified, multijitter, orthogonal, ldsampler) each step is a render of
+//! its own at that count, as a user rendering at that spp gets it, timed alone.
 //!
 //! An unbiased Monte Carlo estimator with per-sample variance σ² has an expected MSE of
 //! σ²/n against the true image, so log RMSE falls with slope −1/2 in log n. Against a
@@ -18,6 +20,7 @@
 use crate::error::{Error, Result};
 use crate::film::Film;
 use crate::render::{render, RenderSettings, RenderStats};
+use crate::sampler::{Sampler, SamplerKind};
 use crate::scene::Scene;
 use crate::study::metrics::{error_metrics, ErrorMetrics};
 
@@ -98,11 +101,13 @@ pub fn mean_of(values: &[[f32; 3]]) -> f64 {
         / n
 }
 
-/// Renders `scene` at the cumulative sample counts `steps` (strictly increasing): step k
-/// draws samples `steps[k-1] .. steps[k]` of every pixel (see
+/// Renders `scene` at the cumulative sample counts `steps` (strictly increasing): with a
+/// progressive sampler step k draws samples `steps[k-1] .. steps[k]` of every pixel (see
 /// [`RenderSettings::first_sample`]) and adds them to the film, so the last image is exactly
-/// the one a single render at `steps.last()` spp gives. After each step `on_step` sees its
-/// time and error against `reference` (same resolution).
+/// the one a single render at `steps.last()` spp gives; with the others step k is a render
+/// of its own with the sampler's points per pass set to `steps[k]` (rounded by the plugin;
+/// a step that rounds to the previous one's count is left out). After each step `on_step`
+/// sees its time and error against `reference` (same resolution).
 pub fn run_ladder(
     scene: &Scene,
     steps: &[u32],
@@ -143,12 +148,52 @@ pub fn run_ladder_with_film(
     let mut stats = RenderStats::default();
     let mut out = Vec::with_capacity(steps.len());
     let mut done = 0u32;
-    for &spp in steps {
-        let settings = RenderSettings {
-            spp: spp - done,
-            first_sample: done as u64,
-            seed,
-            threads,
+    let kind = scene.sampler.kind;
+    // A progressive sampler continues one render through the ladder, with passes as large as
+    // its last step (zsobol: a power of four, whose prefixes at powers of four are nets).
+    let last = *steps.last().unwrap_or(&1);
+    let whole = Sampler {
+        kind,
+        sample_count: match kind {
+            SamplerKind::ZSobol => {
+                let mut p = 1u32;
+                while p < last {
+                    p = p.saturating_mul(4);
+                }
+                p
+            }
+            _ => last,
+        },
+    };
+    for &requested in steps {
+        let (spp, settings) = if kind.progressive() {
+            let settings = RenderSettings {
+                spp: requested - done,
+                first_sample: done as u64,
+                seed,
+                threads,
+                sampler: Some(whole),
+            };
+            (requested, settings)
+        } else {
+            // The others need their point count up front: each step is a render of its own
+            // at that count (rounded as the plugin does), what a user rendering at that spp
+            // gets, and its time is that render's.
+            let sampler = Sampler::new(kind, requested).0;
+            if sampler.sample_count <= done {
+                continue; // rounded to the previous step's count
+            }
+            film = Film::new(scene.width, scene.height, scene.filter);
+            stats = RenderStats::default();
+            let spp = sampler.sample_count;
+            let settings = RenderSettings {
+                spp,
+                first_sample: 0,
+                seed,
+                threads,
+                sampler: Some(sampler),
+            };
+            (spp, settings)
         };
         let part = render(scene, &settings, &|_, _| {})?;
         film.add(&part.film);

@@ -10,6 +10,7 @@
 use crate::error::{Error, Result};
 use crate::io::exr::RgbImage;
 use crate::render::RenderStats;
+use crate::sampler::SamplerKind;
 use crate::scene::description::{IntegratorDesc, SceneDescription};
 use crate::scene::Scene;
 use crate::study::compare::z_test_either;
@@ -129,6 +130,9 @@ pub enum SweepMode {
     /// Set on the path integrator directly (`max_depth`, `rr_depth`), because the scene
     /// does not use `$NAME`.
     Integrator,
+    /// `sampler=NAME,...`: the scene's sampler replaced by each plugin (same sample_count
+    /// and seed), unless the scene declares `<default name="sampler">` itself.
+    Sampler,
 }
 
 /// One scene of an experiment: the whole scene, or one value of the sweep.
@@ -220,11 +224,24 @@ pub fn scene_variants(
     if variants.iter().any(|v| v.description != base) {
         return Ok((variants, Some(SweepMode::Define)));
     }
+    if sweep.name == "sampler" {
+        for v in &mut variants {
+            let value = v.value.clone().unwrap_or_default();
+            v.description.sensor.sampler.kind =
+                SamplerKind::from_name(&value).ok_or_else(|| {
+                    Error::Invalid(format!(
+                        "--sweep sampler: unknown sampler '{value}' (independent, stratified, \
+                         multijitter, orthogonal, ldsampler, zsobol)"
+                    ))
+                })?;
+        }
+        return Ok((variants, Some(SweepMode::Sampler)));
+    }
     if !INTEGRATOR_PARAMETERS.contains(&sweep.name.as_str()) {
         return Err(Error::Invalid(format!(
             "--sweep {0}: no value changes the scene ({1} does not use ${0}); sweep a \
-             parameter declared with <default name=\"{0}\">, or the path integrator's \
-             max_depth or rr_depth",
+             parameter declared with <default name=\"{0}\">, the path integrator's \
+             max_depth or rr_depth, or the sampler",
             sweep.name,
             path.display()
         )));

@@ -206,6 +206,7 @@ fn try_run(scene: &SuiteScene, threads: Option<usize>) -> Result<Judgement, Erro
             first_sample: 0,
             seed: 0,
             threads,
+            sampler: None,
         },
         &|_, _| {},
     )?;

@@ -18,6 +18,7 @@
 
 use crate::error::{Error, Result};
 use crate::io::exr::{self, RgbImage};
+use crate::sampler::{Sampler, SamplerKind};
 use crate::scene::Scene;
 use crate::study::convergence::{
     fit_slope, reference_noise_floor, run_ladder, Ladder, LadderStep, SlopeFit, FLOOR_FACTOR,
@@ -335,11 +336,34 @@ pub struct StudyResult {
     pub mean: MeanCheck,
     /// Check 3.
     pub slope: SlopeFit,
+    /// The slopes check 3 accepts: −1/2 ± [`SLOPE_TOLERANCE`] for independent samples;
+    /// for stratified and low-discrepancy samplers from −3/2 − tolerance (the best rate of
+    /// scrambled nets on smooth integrands) to −1/2 + tolerance.
+    pub slope_range: (f64, f64),
+    /// Rendered with a stratified or low-discrepancy sampler.
+    pub stratified: bool,
 }
 
 impl StudyResult {
     pub fn last(&self) -> Option<&LadderStep> {
         self.ladder.steps.last()
+    }
+
+    /// Check 3: enough steps above the floor and a slope within [`Self::slope_range`]. A
+    /// stratified or low-discrepancy sampler may instead reach the reference's noise floor
+    /// (the last step within [`FLOOR_FACTOR`] of it) before three steps could be fitted: a
+    /// biased image would stay above it.
+    pub fn slope_passed(&self) -> bool {
+        let (lo, hi) = self.slope_range;
+        let fitted = self.slope.used >= MIN_FIT_STEPS
+            && self.slope.slope().is_some_and(|s| lo <= s && s <= hi);
+        fitted || (self.stratified && self.slope.used < MIN_FIT_STEPS && self.reached_floor())
+    }
+
+    /// The last step's RMSE is within [`FLOOR_FACTOR`] of the reference's noise floor.
+    pub fn reached_floor(&self) -> bool {
+        self.last()
+            .is_some_and(|st| st.metrics.rmse <= FLOOR_FACTOR * self.slope.floor)
     }
 
     /// The checks that failed, each with its numbers; empty when all pass.
@@ -369,16 +393,16 @@ impl StudyResult {
                 ));
             }
         }
-        if !self.slope.passed(SLOPE_TOLERANCE) {
+        if !self.slope_passed() {
             f.push(match self.slope.slope() {
                 Some(s) if self.slope.used >= MIN_FIT_STEPS => format!(
-                    "check 3 (convergence): slope {s:.3} over {} steps, not within \
-                     {SLOPE_TOLERANCE} of -0.5",
-                    self.slope.used
+                    "check 3 (convergence): slope {s:.3} over {} steps, not in [{:.2}, {:.2}]",
+                    self.slope.used, self.slope_range.0, self.slope_range.1
                 ),
                 _ => format!(
                     "check 3 (convergence): only {} of {} steps above {FLOOR_FACTOR}x the \
-                     reference's noise floor {:.3e}; need {MIN_FIT_STEPS}",
+                     reference's noise floor {:.3e}; need {MIN_FIT_STEPS} (or, with a \
+                     stratified sampler, the last step at the floor)",
                     self.slope.used, self.slope.total, self.slope.floor
                 ),
             });
@@ -407,16 +431,24 @@ pub fn study(
         )));
     }
     let ladder = run_ladder(scene, steps, seed, threads, &reference.image.rgb, on_step)?;
-    let spp = steps.last().copied().unwrap_or(1) as f64;
+    // the last step's own count (a sampler may have rounded it)
+    let spp = ladder.steps.last().map_or(1, |st| st.spp) as f64;
     let (rgb, var) = (ladder.film.image(), ladder.film.sample_variance());
     let z = pixel_z_test(&rgb, &var, spp, reference)?;
     let mean = mean_check(&rgb, &var, spp, reference);
     let slope = fit_slope(&ladder.rmse_points(), reference.noise_floor(), FLOOR_FACTOR);
+    let slope_range = if scene.sampler.kind == SamplerKind::Independent {
+        (-0.5 - SLOPE_TOLERANCE, -0.5 + SLOPE_TOLERANCE)
+    } else {
+        (-1.5 - SLOPE_TOLERANCE, -0.5 + SLOPE_TOLERANCE)
+    };
     Ok(StudyResult {
         ladder,
         z,
         mean,
         slope,
+        slope_range,
+        stratified: scene.sampler.kind != SamplerKind::Independent,
     })
 }
 
@@ -431,16 +463,21 @@ pub struct SceneResult {
 }
 
 /// Loads `entry`'s scene and reference from `root` and runs [`study`] up to `max_spp`.
+/// With `sampler`, the scene's sampler is replaced by that plugin.
 pub fn validate_scene(
     root: &Path,
     entry: &ValidationScene,
     steps: &[u32],
     seed: u64,
     threads: Option<usize>,
+    sampler: Option<SamplerKind>,
     on_step: &mut dyn FnMut(&LadderStep),
 ) -> Result<SceneResult> {
     let t = Instant::now();
-    let scene = entry.load_scene(root)?;
+    let mut scene = entry.load_scene(root)?;
+    if let Some(kind) = sampler {
+        scene.sampler = Sampler::new(kind, scene.sample_count).0;
+    }
     let load_seconds = t.elapsed().as_secs_f64();
     let reference = entry.load_reference(root)?;
     let study = study(&scene, &reference, steps, seed, threads, on_step)?;
@@ -476,7 +513,7 @@ fn status_cell(r: &StudyResult) -> String {
     if !r.mean.passed() {
         failed.push("mean");
     }
-    if !r.slope.passed(SLOPE_TOLERANCE) {
+    if !r.slope_passed() {
         failed.push("slope");
     }
     if failed.is_empty() {
@@ -486,10 +523,16 @@ fn status_cell(r: &StudyResult) -> String {
     }
 }
 
-fn slope_cell(s: &SlopeFit) -> String {
+fn slope_cell(r: &StudyResult) -> String {
+    let s = &r.slope;
+    let floor = if r.stratified && s.used < MIN_FIT_STEPS && r.reached_floor() {
+        ", at the floor"
+    } else {
+        ""
+    };
     match s.slope() {
-        Some(v) => format!("{v:.3} ({}/{} steps)", s.used, s.total),
-        None => format!("n/a ({}/{} steps)", s.used, s.total),
+        Some(v) => format!("{v:.3} ({}/{} steps{floor})", s.used, s.total),
+        None => format!("n/a ({}/{} steps{floor})", s.used, s.total),
     }
 }
 
@@ -528,7 +571,8 @@ pub fn report_markdown(
          column shows the worst channel.\n\
          3. **slope**: least-squares slope of ln RMSE vs. ln spp over the ladder \
          (1, 4, 16, ... spp, each step continuing the previous one's samples), −0.5 ± \
-         {SLOPE_TOLERANCE}. The fit stops at the first step whose RMSE is within \
+         {SLOPE_TOLERANCE} (with a stratified or low-discrepancy sampler: between −1.5 − \
+         {SLOPE_TOLERANCE} and −0.5 + {SLOPE_TOLERANCE}, each step a render of its own). The fit stops at the first step whose RMSE is within \
          {FLOOR_FACTOR}× the reference's noise floor √(mean(var_ref)/spp_ref) (the RMSE a \
          perfect image would show); at least {MIN_FIT_STEPS} steps are needed.\n\n\
          RMSE and relative MSE (mean of (ours − ref)² / (ref² + 0.01)) are over all \
@@ -556,7 +600,7 @@ pub fn report_markdown(
             100.0 * st.z.pass_rate(),
             st.mean.max_sigmas(),
             100.0 * st.mean.max_relative(),
-            slope_cell(&st.slope),
+            slope_cell(st),
             status_cell(st)
         );
     }

@@ -28,6 +28,7 @@ pub fn render_scene(scene: &Scene, spp: u32, seed: u64, threads: Option<usize>) 
             spp,
             seed,
             threads,
+            sampler: None,
             first_sample: 0,
         },
         &|_, _| {},

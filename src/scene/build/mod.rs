@@ -21,6 +21,7 @@ use crate::emitter::{
 use crate::error::{Error, Result};
 use crate::film::Filter;
 use crate::integrator::{DirectIntegrator, Integrator, PathIntegrator};
+use crate::sampler::Sampler;
 use crate::shape::{Cylinder, Disk, Mesh, SdfGrid, Shape, ShapeGeometry, Sphere};
 use glam::{DMat3, DMat4, DVec3, Vec2, Vec3};
 
@@ -160,6 +161,8 @@ pub fn build(desc: &SceneDescription) -> Result<Scene> {
             hide_emitters,
         )),
     };
+    let (sampler, rounded) = Sampler::new(s.sampler.kind, s.sampler.sample_count);
+    warnings.extend(rounded);
     Ok(Scene {
         shapes,
         materials: materials.materials,
@@ -173,7 +176,8 @@ pub fn build(desc: &SceneDescription) -> Result<Scene> {
             FilterDesc::Tent { radius } => Filter::Tent { radius },
             FilterDesc::Gaussian { stddev } => Filter::Gaussian { stddev },
         },
-        sample_count: s.sampler.sample_count,
+        sample_count: sampler.sample_count,
+        sampler,
         seed: s.sampler.seed,
         integrator,
         warnings,

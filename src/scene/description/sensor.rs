@@ -3,6 +3,7 @@
 
 use super::*;
 use crate::camera::FovAxis;
+use crate::sampler::SamplerKind;
 
 #[derive(Clone, Debug, PartialEq)]
 pub struct SensorDesc {
@@ -40,6 +41,9 @@ pub enum FilterDesc {
 
 #[derive(Clone, Debug, PartialEq)]
 pub struct SamplerDesc {
+    /// The plugin and its parameters.
+    pub kind: SamplerKind,
+    /// `sample_count` as written (the sampler rounds it when the scene is built).
     pub sample_count: u32,
     pub seed: u64,
 }
@@ -193,6 +197,7 @@ pub(super) fn sensor_desc(o: &Object) -> Result<SensorDesc> {
             rfilter: FilterDesc::Gaussian { stddev: 0.5 },
         }),
         sampler: sampler.unwrap_or(SamplerDesc {
+            kind: SamplerKind::Independent,
             sample_count: 4,
             seed: 0,
         }),
@@ -306,13 +311,31 @@ pub(super) fn rfilter_desc(c: &Object) -> Result<FilterDesc> {
 }
 
 pub(super) fn sampler_desc(o: &Object) -> Result<SamplerDesc> {
-    if o.plugin != "independent" {
+    let Some(mut kind) = SamplerKind::from_name(&o.plugin) else {
         return Err(unsupported_plugin(o));
-    }
+    };
     no_children(o)?;
     let mut p = Props::new(o);
     let sample_count = p.int("sample_count", 4)?;
     let seed = p.int("seed", 0)?;
+    match &mut kind {
+        SamplerKind::Stratified { jitter } | SamplerKind::Multijitter { jitter } => {
+            *jitter = p.boolean("jitter", true)?;
+        }
+        SamplerKind::Orthogonal { strength, jitter } => {
+            *jitter = p.boolean("jitter", true)?;
+            let s = p.int("strength", 2)?;
+            // r^strength rows must fit the 32-bit sample index for r up to 2^16 / strength
+            if !(2..=8).contains(&s) {
+                return Err(Error::scene(
+                    &o.location,
+                    format!("strength must be between 2 and 8, got {s}"),
+                ));
+            }
+            *strength = s as u32;
+        }
+        _ => {}
+    }
     p.finish()?;
     if sample_count <= 0 || sample_count > u32::MAX as i64 {
         return Err(Error::scene(
@@ -330,6 +353,7 @@ pub(super) fn sampler_desc(o: &Object) -> Result<SamplerDesc> {
         ));
     }
     Ok(SamplerDesc {
+        kind,
         sample_count: sample_count as u32,
         seed: seed as u64,
     })
