@@ -26,7 +26,10 @@ use super::stratified::ONE_MINUS_EPSILON;
 use super::{mix64, permute, sub_seed};
 
 fn is_prime(x: u32) -> bool {
-    x >= 2 && (2..).take_while(|i| i * i <= x).all(|i| !x.is_multiple_of(i))
+    x >= 2
+        && (2..)
+            .take_while(|i| i * i <= x)
+            .all(|i| !x.is_multiple_of(i))
 }
 
 /// Mitsuba's array side for `n` points: the smallest prime r ≥ 2 with r² ≥ n.

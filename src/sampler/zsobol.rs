@@ -60,13 +60,11 @@ pub(super) fn pixel(x: u32, y: u32, side: u32, n: u32, index: u32) -> Pixel {
     }
 }
 
-/// The hash that picks a digit's permutation: one multiply-xorshift round (half of
-/// SplitMix64's finaliser; this runs ~10 times per dimension, and only has to pick one of 24).
+/// The hash that picks a digit's permutation: SplitMix64's finaliser (pbrt-v4 uses its
+/// MixBits, the same kind: a weaker one-round mixer correlated neighbouring pixels).
 #[inline]
-fn digit_hash(mut x: u64) -> u64 {
-    x ^= x >> 31;
-    x = x.wrapping_mul(0xbf58_476d_1ce4_e5b9);
-    x ^ (x >> 29)
+fn digit_hash(x: u64) -> u64 {
+    mix64(x) >> 24
 }
 
 /// The 24 permutations of (0, 1, 2, 3), in lexicographic order.
