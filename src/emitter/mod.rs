@@ -46,6 +46,21 @@ pub struct DirectionSample {
 }
 
 impl DirectionSample {
+    /// Light from a point source (point, spot, projector) at `position`, seen along the unit
+    /// direction `d` at distance `dist`: a delta sample with pdf 1.
+    pub fn from_point(position: Vec3, d: Vec3, dist: f32, radiance: Spectrum) -> Self {
+        DirectionSample {
+            p: position,
+            p_error: Vec3::ZERO,
+            n: Vec3::ZERO,
+            d,
+            dist,
+            pdf: 1.0,
+            radiance,
+            delta: true,
+        }
+    }
+
     /// The emitter lies at infinity (directional, environment): shadow rays go to ∞.
     pub fn is_infinite(&self) -> bool {
         self.dist.is_infinite()

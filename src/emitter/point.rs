@@ -19,15 +19,11 @@ impl PointEmitter {
             return None;
         }
         let dist = dist2.sqrt();
-        Some(DirectionSample {
-            p: self.position,
-            p_error: Vec3::ZERO,
-            n: Vec3::ZERO,
-            d: v / dist,
+        Some(DirectionSample::from_point(
+            self.position,
+            v / dist,
             dist,
-            pdf: 1.0,
-            radiance: self.intensity / dist2,
-            delta: true,
-        })
+            self.intensity / dist2,
+        ))
     }
 }

@@ -95,16 +95,12 @@ impl ProjectorEmitter {
         let cos = -self.axis.dot(d);
         let e = self.irradiance.eval(&TextureContext::at_uv(uv));
         let radiance = e * (std::f32::consts::PI * self.scale / (local.z * local.z * cos));
-        radiance.is_finite().then_some(DirectionSample {
-            p: self.position,
-            p_error: Vec3::ZERO,
-            n: Vec3::ZERO,
+        radiance.is_finite().then_some(DirectionSample::from_point(
+            self.position,
             d,
             dist,
-            pdf: 1.0,
             radiance,
-            delta: true,
-        })
+        ))
     }
 }
 

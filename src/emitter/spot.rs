@@ -113,15 +113,11 @@ impl SpotEmitter {
         if let Some(t) = &self.texture {
             radiance *= t.eval(&TextureContext::at_uv(self.direction_to_uv(local)));
         }
-        Some(DirectionSample {
-            p: self.position,
-            p_error: Vec3::ZERO,
-            n: Vec3::ZERO,
+        Some(DirectionSample::from_point(
+            self.position,
             d,
             dist,
-            pdf: 1.0,
             radiance,
-            delta: true,
-        })
+        ))
     }
 }
