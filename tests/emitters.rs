@@ -74,10 +74,11 @@ fn check_sampling(name: &str, scene: &Scene, p: Vec3, seed: u64) {
     // for smooth BSDF densities keeps the cells they cut accurate (with 8 sub-intervals the
     // rectangle's χ² was 1818 on 90 dof, with 32 it is 100).
     let cfg = Chi2Config {
-        quadrature: 32,
+        quadrature: 96,
         ..Chi2Config::default()
     };
     let mut checked = 0;
+    let mut at_edges = 0;
     let r = chi2_test(
         n,
         |i| {
@@ -93,19 +94,33 @@ fn check_sampling(name: &str, scene: &Scene, p: Vec3, seed: u64) {
             // ds.d re-hits a curved emitter up to ~1e-4 from the sampled point, where 1/cos
             // (in every area-to-solid-angle density) differs by more than the tolerance.
             let grazing = ds.n != Vec3::ZERO && ds.n.dot(ds.d).abs() < 0.05;
-            if i % 97 == 0 && !grazing {
+            if !grazing {
                 let (pdf, le) = pdf_and_radiance(scene, p, ds.d);
-                assert!(
-                    (pdf - ds.pdf as f64).abs() <= 2e-3 * pdf.max(ds.pdf as f64),
-                    "{name}: sampled pdf {} vs pdf() {pdf} at {}",
-                    ds.pdf,
-                    ds.d
-                );
-                assert!(
-                    (le - ds.radiance).abs().max_element() <= 1e-3 * le.max_element().max(1e-3),
-                    "{name}: sampled radiance {} vs eval {le}",
-                    ds.radiance
-                );
+                let same = |a: f64, b: f64| (a - b).abs() <= 2e-3 * a.max(b);
+                if !same(pdf, ds.pdf as f64) {
+                    // Densities jump at pixel edges (environment maps) and at the edges of
+                    // a light (the ray along an f32 direction to a sampled point on the edge
+                    // may miss it). Accepted only there: pdf() must take the sampled value
+                    // within 1e-5 rad of d.
+                    let f = Frame::from_normal(ds.d);
+                    let near: Vec<f64> = [f.s, -f.s, f.t, -f.t]
+                        .iter()
+                        .map(|&o| pdf_and_radiance(scene, p, (ds.d + 1e-5 * o).normalize()).0)
+                        .collect();
+                    assert!(
+                        near.iter().any(|&q| same(q, ds.pdf as f64)),
+                        "{name}: sampled pdf {} vs pdf() {pdf} at {} (around it: {near:?})",
+                        ds.pdf,
+                        ds.d
+                    );
+                    at_edges += 1;
+                } else {
+                    assert!(
+                        (le - ds.radiance).abs().max_element() <= 1e-3 * le.max_element().max(1e-3),
+                        "{name}: sampled radiance {} vs eval {le}",
+                        ds.radiance
+                    );
+                }
                 checked += 1;
             }
             Some(ds.d)
@@ -118,10 +133,20 @@ fn check_sampling(name: &str, scene: &Scene, p: Vec3, seed: u64) {
         "{name}: chi2 {:.1}, dof {}, p = {:.4}, pdf integral {:.4}, landed {}",
         r.statistic, r.dof, r.p_value, r.pdf_integral, r.landed
     );
-    assert!(checked > 100, "{name}: only {checked} samples checked");
-    assert!(r.p_value > alpha, "{name}: {r:?}");
+    assert!(checked > n / 10, "{name}: only {checked} samples checked");
+    // edge samples are a set of measure ~ (1e-6 rad / pixel or light size): a handful
     assert!(
-        (r.pdf_integral - r.landed as f64 / n as f64).abs() < 0.01,
+        at_edges * 1000 < checked,
+        "{name}: {at_edges} of {checked} samples at density edges"
+    );
+    assert!(r.p_value > alpha, "{name}: {r:?}");
+    // The pdf integrates to the fraction of samples that landed (not occluded, not delta):
+    // within 5 binomial standard errors plus the quadrature's 2e-3, so that a 1% pdf scale
+    // error fails.
+    let frac = r.landed as f64 / n as f64;
+    let se = (frac * (1.0 - frac) / n as f64).sqrt();
+    assert!(
+        (r.pdf_integral - frac).abs() < 5.0 * se + 2e-3,
         "{name}: pdf integral {} vs fraction landed {}",
         r.pdf_integral,
         r.landed as f64 / n as f64
