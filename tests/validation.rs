@@ -29,10 +29,12 @@ fn landed_scenes_match_mitsuba() {
     let landed: Vec<_> = list.iter().filter(|s| s.is_landed()).collect();
     assert!(!landed.is_empty(), "no landed scene in the list");
     let mut failures = Vec::new();
+    let mut controls = Vec::new();
     for entry in landed {
         let steps = spp_ladder(entry.test_spp);
         let r = validate_scene(&root, entry, &steps, SEED, None, None, &mut |_| {})
             .unwrap_or_else(|e| panic!("{}: {e}", entry.name));
+        controls.push(negative_controls(&root, entry, &r));
         let last = r.study.last().expect("steps");
         eprintln!(
             "{}: {} spp, {:.2} s, RMSE {:.3e}, z-test pass {:.3}% (max |z| {:.2}), mean worst \
@@ -58,6 +60,134 @@ fn landed_scenes_match_mitsuba() {
         );
     }
     assert!(failures.is_empty(), "{failures:#?}");
+    let report: Vec<String> = controls.iter().map(|c| c.line()).collect();
+    eprintln!("negative controls:\n{}", report.join("\n"));
+    // Every control that the test can resolve must fail the checks...
+    let missed: Vec<&String> = controls
+        .iter()
+        .zip(&report)
+        .filter(|(c, _)| c.missed())
+        .map(|(_, l)| l)
+        .collect();
+    assert!(missed.is_empty(), "biased images passed: {missed:#?}");
+    // ...and most can: the 1% scale on every scene whose mean is known to ±0.125% (8 se).
+    let resolved = controls.iter().filter(|c| c.scale_resolvable).count();
+    assert!(
+        resolved * 4 >= controls.len() * 3,
+        "only {resolved} of {} scenes resolve a 1% bias",
+        controls.len()
+    );
+    assert!(
+        controls.iter().filter(|c| c.depth == Some(true)).count() >= 5,
+        "fewer than 5 scenes resolve a missing last bounce"
+    );
+}
+
+/// Per-scene sensitivity of checks 1-2: the last image ×1.01, and a render with max_depth − 1
+/// at the same spp and seed. A bias is *resolvable* when it moves some channel's mean by more
+/// than 8 standard errors of check 2 (twice its 4-sigma bound, so that noise in either
+/// direction cannot hide it); every resolvable bias must fail check 1 or 2.
+struct Control {
+    name: String,
+    /// the ×1.01 shift in standard errors (max over channels), and whether the checks failed
+    scale_sigmas: f64,
+    scale_resolvable: bool,
+    scale_failed: bool,
+    /// max_depth − 1: (resolvable, failed, shift in se, shift %); None without a finite
+    /// max_depth (unbounded paths or the direct integrator)
+    depth: Option<bool>,
+    depth_failed: bool,
+    depth_sigmas: f64,
+    depth_percent: f64,
+}
+
+impl Control {
+    fn missed(&self) -> bool {
+        (self.scale_resolvable && !self.scale_failed)
+            || (self.depth == Some(true) && !self.depth_failed)
+    }
+
+    fn line(&self) -> String {
+        let depth = match self.depth {
+            None => "max_depth−1: n/a (no finite max_depth)".to_string(),
+            Some(res) => format!(
+                "max_depth−1 shifts the mean {:.2}% = {:.1} se: {}",
+                self.depth_percent,
+                self.depth_sigmas,
+                match (res, self.depth_failed) {
+                    (true, true) => "caught",
+                    (true, false) => "MISSED",
+                    (false, true) => "caught (below 8 se)",
+                    (false, false) => "below the test's resolution",
+                }
+            ),
+        };
+        format!(
+            "{:24} ×1.01 = {:5.1} se: {:28} {depth}",
+            self.name,
+            self.scale_sigmas,
+            match (self.scale_resolvable, self.scale_failed) {
+                (true, true) => "caught",
+                (true, false) => "MISSED",
+                (false, true) => "caught (below 8 se)",
+                (false, false) => "below the test's resolution",
+            }
+        )
+    }
+}
+
+fn negative_controls(
+    root: &std::path::Path,
+    entry: &penumbra::study::validation::ValidationScene,
+    r: &penumbra::study::validation::SceneResult,
+) -> Control {
+    use penumbra::integrator::Integrator;
+    use penumbra::study::validation::pixel_z_test;
+    let spp = r.study.ladder.steps.last().expect("steps").spp;
+    let (rgb, var) = (
+        r.study.ladder.film.image(),
+        r.study.ladder.film.sample_variance(),
+    );
+    let checks_fail = |rgb: &[[f32; 3]], var: &[[f32; 3]]| {
+        let z = pixel_z_test(rgb, var, spp as f64, &r.reference).expect("z-test");
+        !z.passed() || !mean_check(rgb, var, spp as f64, &r.reference).passed()
+    };
+    let se = r.study.mean.channels.map(|c| c.se);
+    let shift_sigmas = |d: [f64; 3]| (0..3).map(|c| d[c].abs() / se[c]).fold(0.0, f64::max);
+    // ×1.01
+    let scaled: Vec<[f32; 3]> = rgb.iter().map(|p| p.map(|x| x * 1.01)).collect();
+    let scaled_var: Vec<[f32; 3]> = var.iter().map(|p| p.map(|x| x * 1.0201)).collect();
+    let scale_sigmas = shift_sigmas(r.study.mean.channels.map(|c| 0.01 * c.ours));
+    let mut c = Control {
+        name: entry.name.clone(),
+        scale_sigmas,
+        scale_resolvable: scale_sigmas > 8.0,
+        scale_failed: checks_fail(&scaled, &scaled_var),
+        depth: None,
+        depth_failed: false,
+        depth_sigmas: 0.0,
+        depth_percent: 0.0,
+    };
+    // max_depth − 1
+    let mut scene = entry.load_scene(root).expect("scene");
+    if let Integrator::Path(p) = &mut scene.integrator {
+        if p.max_depth != u32::MAX && p.max_depth > 0 {
+            p.max_depth -= 1;
+            let out = common::render_scene(&scene, spp, SEED, None);
+            let (rgb1, var1) = (out.film.image(), out.film.sample_variance());
+            let m1 = mean_check(&rgb1, &var1, spp as f64, &r.reference);
+            let d: [f64; 3] =
+                std::array::from_fn(|k| r.study.mean.channels[k].ours - m1.channels[k].ours);
+            c.depth_sigmas = shift_sigmas(d);
+            c.depth_percent = 100.0
+                * (0..3)
+                    .map(|k| d[k].abs() / r.study.mean.channels[k].ours.abs().max(1e-12))
+                    .fold(0.0, f64::max);
+            c.depth = Some(c.depth_sigmas > 8.0);
+            c.depth_failed = checks_fail(&rgb1, &var1);
+        }
+    }
+    c
 }
 
 /// The Cornell box (max_depth 8) compared with the max_depth 2 reference: the missing
