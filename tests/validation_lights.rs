@@ -1,7 +1,8 @@
 //! Calibration of the per-pixel z-test with a splatting filter: the Cornell box with
 //! Mitsuba's default gaussian filter against its Mitsuba 3.9.1 reference (128x128, 4096 spp,
 //! llvm_ad_rgb, variance channels rescaled by the filter's per-pixel factor K) passes the
-//! z-test and the mean check, and the same render scaled by 1.03 or 0.97 fails them. (Every
+//! z-test, the mean check and the calibration of z (mean z² = 1, 5% beyond 1.96, on pixels
+//! that share no samples), and the same render scaled by 1.03 or 0.97 fails them. (Every
 //! validation scene's own checks run in tests/validation.rs.)
 
 mod common;
@@ -10,6 +11,7 @@ use penumbra::io::exr;
 use penumbra::io::exr::RgbImage;
 use penumbra::scene::Scene;
 use penumbra::study::metrics::{channel_means, z_test, VARIANCE_FLOOR};
+use penumbra::study::stats::{normal_critical_z, sidak};
 use std::collections::BTreeMap;
 
 const REF_SPP: f64 = 4096.0;
@@ -32,29 +34,43 @@ fn unfiltered_variance_sum(scene: &Scene, var: &[[f32; 3]], c: usize) -> f64 {
         .sum()
 }
 
-/// Calibration of the per-pixel z values: (mean of z², fraction with |z| > 1.96). With
-/// correct variances on both sides, 1 and 0.05.
-fn z_calibration(a: &RgbImage, spp_a: f64, b: &RgbImage, spp_b: f64) -> (f64, f64) {
+/// Calibration of the per-pixel z values: with correct variances on both sides z is
+/// (nearly) standard normal, so mean z² = 1 and 5% of |z| exceed 1.96. Taken over pixels that
+/// share no samples (every 4th pixel in x and y: the gaussian filter's radius is 2 pixels),
+/// one channel each (rotating), and only where neither variance is raised to the z-test's
+/// floor (the floor only makes |z| smaller; it covers the dark pixels). Returns (mean z², its
+/// standard error from the sample of z² itself, fraction |z| > 1.96, count).
+fn z_calibration(a: &RgbImage, spp_a: f64, b: &RgbImage, spp_b: f64) -> (f64, f64, f64, usize) {
     let (va, vb) = (a.variance.as_ref().unwrap(), b.variance.as_ref().unwrap());
-    let (mut z2, mut out, mut n) = (0.0, 0usize, 0usize);
-    for i in 0..a.rgb.len() {
-        for c in 0..3 {
-            let var = (va[i][c] as f64).max(VARIANCE_FLOOR) / spp_a
-                + (vb[i][c] as f64).max(VARIANCE_FLOOR) / spp_b;
-            let z = (a.rgb[i][c] as f64 - b.rgb[i][c] as f64) / var.sqrt();
-            z2 += z * z;
-            out += (z.abs() > 1.96) as usize;
-            n += 1;
+    let mut z2s = Vec::new();
+    for y in (0..a.height).step_by(4) {
+        for x in (0..a.width).step_by(4) {
+            let (i, c) = (y * a.width + x, (x / 4 + y / 4) % 3);
+            let (sa, sb) = (va[i][c] as f64, vb[i][c] as f64);
+            if sa <= VARIANCE_FLOOR || sb <= VARIANCE_FLOOR {
+                continue;
+            }
+            let z = (a.rgb[i][c] as f64 - b.rgb[i][c] as f64) / (sa / spp_a + sb / spp_b).sqrt();
+            z2s.push(z * z);
         }
     }
-    (z2 / n as f64, out as f64 / n as f64)
+    let n = z2s.len() as f64;
+    let mean = z2s.iter().sum::<f64>() / n;
+    let var = z2s.iter().map(|v| (v - mean).powi(2)).sum::<f64>() / (n - 1.0);
+    let beyond = z2s.iter().filter(|&&v| v > 1.96 * 1.96).count() as f64 / n;
+    (mean, (var / n).sqrt(), beyond, z2s.len())
 }
 
 /// Renders `scene_file` at 128x128 and `spp` and compares it with its reference, once per
 /// entry of `scales` (the rendered radiance multiplied by it: 1 for the real test, others
-/// for deliberately wrong renders). Returns, per scale, whether every check passed and a
-/// report.
-fn compare(scene_file: &str, reference: &str, spp: u32, scales: &[f32]) -> Vec<(bool, String)> {
+/// for deliberately wrong renders). Returns, per scale, whether every check passed, whether
+/// the z values are calibrated, and a report.
+fn compare(
+    scene_file: &str,
+    reference: &str,
+    spp: u32,
+    scales: &[f32],
+) -> Vec<(bool, bool, String)> {
     let reference = exr::read(&repo_path(reference)).expect("reference");
     let scene = load(scene_file, &[("res", "128")]);
     assert_eq!(
@@ -76,14 +92,20 @@ fn compare(scene_file: &str, reference: &str, spp: u32, scales: &[f32]) -> Vec<(
             attributes: BTreeMap::new(),
         };
         let t = z_test(&ours, spp as f64, &reference, REF_SPP, 0.01).expect("variances");
-        let (z2, beyond) = z_calibration(&ours, spp as f64, &reference, REF_SPP);
+        let (z2, z2_se, beyond, n_cal) = z_calibration(&ours, spp as f64, &reference, REF_SPP);
+        // Calibration: mean z² = 1 and 5% beyond 1.96, two-sided at α = 0.01 Šidák-corrected
+        // over the two statistics.
+        let zc = normal_critical_z(sidak(0.01, 2));
+        let beyond_se = (0.05 * 0.95 / n_cal as f64).sqrt();
+        let calibrated = (z2 - 1.0).abs() < zc * z2_se && (beyond - 0.05).abs() < zc * beyond_se;
         let (m_ours, m_ref) = (channel_means(&ours.rgb), channel_means(&reference.rgb));
         let n = ours.rgb.len() as f64;
-        let mut ok = t.passed();
+        let mut ok = t.passed() && calibrated;
         let mut report = format!(
             "{scene_file} x{scale}: {spp} spp in {seconds:.1} s; z-test {} of {} \
-             pixel-channels fail (|z| > {:.2}), pass rate {:.4}, max |z| {:.2}, mean z² \
-             {z2:.3}, |z| > 1.96: {:.2}%; means",
+             pixel-channels fail (|z| > {:.2}), pass rate {:.4}, max |z| {:.2}; calibration over \
+             {n_cal} independent pixels: mean z² {z2:.3} ± {z2_se:.3}, |z| > 1.96: {:.2}% \
+             ({calibrated}); means",
             t.failures,
             t.tests,
             t.z_critical,
@@ -111,7 +133,7 @@ fn compare(scene_file: &str, reference: &str, spp: u32, scales: &[f32]) -> Vec<(
             ok &= d < 4.0 * se && d < 0.01 * m_ref[c];
         }
         eprintln!("{report}");
-        results.push((ok, report));
+        results.push((ok, calibrated, report));
     }
     results
 }
@@ -128,10 +150,12 @@ fn cornell_gaussian_matches_mitsuba_and_a_wrong_render_fails() {
         spp(128),
         &[1.0, 1.03, 0.97],
     );
-    assert!(r[0].0, "{}", r[0].1);
-    // The same render with radiance x1.03 or x0.97 must fail.
-    assert!(!r[1].0, "{}", r[1].1);
-    assert!(!r[2].0, "{}", r[2].1);
+    assert!(r[0].0 && r[0].1, "{}", r[0].2);
+    // The same render with radiance x1.03 or x0.97 must fail, the z calibration on its own
+    // too (mean z² 1.51 ± 0.07 and 2.00 ± 0.11 when measured), not only the 1% mean bound.
+    for bad in &r[1..] {
+        assert!(!bad.0 && !bad.1, "{}", bad.2);
+    }
 }
 
 /// The test's spp, or PENUMBRA_VALIDATION_SPP for experiments.
