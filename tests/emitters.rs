@@ -576,3 +576,42 @@ fn environment_seen_by_camera_rays_unless_emitters_are_hidden() {
         .image();
     assert!(img.iter().all(|p| *p == [0.0; 3]));
 }
+
+/// `Emitter::power` (the weights light tracing will choose emitters by) against the closed
+/// forms: π A L for a one-sided area light, 4π I for a point, 2π(1 − cos θ) I for a spot
+/// with θ halfway between beam and cutoff, π r² E for a directional light and π · π r² L for
+/// a constant environment, both over the bounding disk of radius r.
+#[test]
+fn emitter_power_closed_forms() {
+    let s = scene(
+        r#"<shape type="rectangle">
+            <transform name="to_world"><scale x="2" y="0.5"/></transform>
+            <emitter type="area"><rgb name="radiance" value="1, 2, 3"/></emitter>
+        </shape>
+        <emitter type="point"><point name="position" x="0" y="0" z="1"/><rgb name="intensity" value="3, 3, 6"/></emitter>
+        <emitter type="spot"><float name="intensity" value="2"/><float name="cutoff_angle" value="30"/><float name="beam_width" value="10"/></emitter>
+        <emitter type="directional"><vector name="direction" x="0" y="0" z="-1"/><float name="irradiance" value="1.5"/></emitter>"#,
+    );
+    let r = 2.5;
+    let pi = PI;
+    let mid = 20f64.to_radians();
+    let expected = [
+        pi * (2.0 * 2.0 * 0.5 * 2.0) * 2.0,
+        4.0 * pi * 4.0,
+        2.0 * pi * (1.0 - mid.cos()) * 2.0,
+        pi * r * r * 1.5,
+    ];
+    assert_eq!(s.emitters.len(), expected.len());
+    for (e, want) in s.emitters.iter().zip(expected) {
+        let got = e.power(&s.shapes, r);
+        assert!(
+            (got / want - 1.0).abs() < 1e-5,
+            "{e:?}: power {got}, expected {want}"
+        );
+    }
+    let s =
+        scene(r#"<emitter type="constant"><rgb name="radiance" value="0.5, 1, 1.5"/></emitter>"#);
+    let got = s.emitters[0].power(&s.shapes, r);
+    let want = pi * pi * r * r;
+    assert!((got / want - 1.0).abs() < 1e-5, "constant: {got} vs {want}");
+}
