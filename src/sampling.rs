@@ -300,6 +300,30 @@ impl Distribution2D {
 mod tests {
     use super::*;
 
+    /// `Distribution2D::sample` keeps its promise of a point in [0,1)² at the largest
+    /// random numbers, where (j + fy) / nv rounds to 1 in f32 without the clamp (an
+    /// environment map would then sample the pole, sin θ = 0, and lose the sample).
+    #[test]
+    fn distribution2d_sample_stays_below_one() {
+        let below_one = 1.0 - f32::EPSILON / 2.0;
+        for (nu, nv) in [(1, 3), (3, 1), (7, 5), (64, 32)] {
+            let weights: Vec<f64> = (0..nu * nv).map(|k| 1.0 + k as f64).collect();
+            let d = Distribution2D::new(&weights, nu, nv).unwrap();
+            for u in [
+                Vec2::ZERO,
+                Vec2::splat(below_one),
+                Vec2::new(0.5, below_one),
+            ] {
+                let (uv, pdf) = d.sample(u);
+                assert!(
+                    (0.0..1.0).contains(&uv.x) && (0.0..1.0).contains(&uv.y) && pdf > 0.0,
+                    "{nu}x{nv} at {u}: {uv} (pdf {pdf})"
+                );
+                assert_eq!(d.pdf(uv), pdf);
+            }
+        }
+    }
+
     #[test]
     fn concentric_disk_stays_in_disk_and_maps_corners() {
         for i in 0..=20 {
