@@ -614,4 +614,15 @@ fn emitter_power_closed_forms() {
     let got = s.emitters[0].power(&s.shapes, r);
     let want = pi * pi * r * r;
     assert!((got / want - 1.0).abs() < 1e-5, "constant: {got} vs {want}");
+    // projector: π × mean irradiance × scale × the image's area at distance 1,
+    // (2 tan(fov_x / 2))² / aspect = 4 for a square 90° image
+    let s = scene(
+        r#"<emitter type="projector"><rgb name="irradiance" value="0.5, 1, 1.5"/><float name="scale" value="3"/><float name="fov" value="90"/></emitter>"#,
+    );
+    let got = s.emitters[0].power(&s.shapes, r);
+    let want = pi * 3.0 * 4.0;
+    assert!(
+        (got / want - 1.0).abs() < 1e-5,
+        "projector: {got} vs {want}"
+    );
 }
