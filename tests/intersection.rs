@@ -254,3 +254,44 @@ fn directions_with_negative_zero_components_hit() {
         assert!(scene.occluded(&penumbra::geometry::Ray::new(glam::Vec3::ZERO, d, 10.0)));
     }
 }
+
+/// Instanced analytic shapes (and a mesh) are hit where the same shape placed directly is:
+/// distance, normal and point, through a scaled, rotated and translated instance (the mesh
+/// case with a non-uniform scale is in tests/mitsuba_files.rs).
+#[test]
+fn instanced_analytic_shapes_hit_like_placed_ones() {
+    let t = r#"<transform name="to_world"><scale value="1.5"/><rotate x="1" angle="30"/><translate x="0.5" y="0.2" z="-4"/></transform>"#;
+    for shape in ["sphere", "cylinder", "disk", "rectangle", "cube"] {
+        let direct = scene(&format!(r#"<shape type="{shape}">{t}</shape>"#));
+        let instanced = scene(&format!(
+            r#"<shape type="shapegroup" id="g"><shape type="{shape}"/></shape><shape type="instance"><ref id="g"/>{t}</shape>"#
+        ));
+        let mut hits = 0;
+        for i in 0..400 {
+            let (u, v) = ((i % 20) as f32 / 10.0 - 1.0, (i / 20) as f32 / 10.0 - 1.0);
+            let r = ray([0.0, 0.0, 0.0], [u * 2.0 + 0.5, v * 2.0 + 0.2, -4.0]);
+            let (a, b) = (direct.intersect(&r), instanced.intersect(&r));
+            assert_eq!(a.is_some(), b.is_some(), "{shape}: ray {i}");
+            if let (Some(a), Some(b)) = (a, b) {
+                hits += 1;
+                assert!(
+                    (a.t - b.t).abs() <= 1e-5 * a.t,
+                    "{shape} ray {i}: {} vs {}",
+                    a.t,
+                    b.t
+                );
+                assert!(
+                    (a.ng - b.ng).length() < 1e-4,
+                    "{shape} ray {i}: {} vs {}",
+                    a.ng,
+                    b.ng
+                );
+                assert!(
+                    (a.p - b.p).length() <= 1e-5 * a.p.length(),
+                    "{shape} ray {i}"
+                );
+            }
+        }
+        assert!(hits > 40, "{shape}: {hits} hits");
+    }
+}
