@@ -66,6 +66,7 @@ CASES = [
     ("normalmap-textured-plastic", '<bsdf type="normalmap"><texture type="bitmap" name="normalmap"><string name="filename" value="data/textures/rgb8.png"/><boolean name="raw" value="true"/></texture><bsdf type="roughplastic"/></bsdf>', "eval"),
     ("bumpmap-roughconductor", '<bsdf type="bumpmap"><texture type="bitmap"><string name="filename" value="data/textures/grey8.png"/><boolean name="raw" value="true"/></texture><float name="scale" value="0.05"/><bsdf type="roughconductor"><float name="alpha" value="0.2"/></bsdf></bsdf>', "eval"),
     ("bumpmap-diffuse-twosided", '<bsdf type="bumpmap"><texture type="bitmap"><string name="filename" value="data/textures/ramp8.png"/><boolean name="raw" value="true"/></texture><float name="scale" value="0.2"/><bsdf type="twosided"><bsdf type="diffuse"/></bsdf></bsdf>', "eval"),
+    ("roughplastic-beckmann-0.4-novisible", '<bsdf type="roughplastic"><float name="alpha" value="0.4"/><boolean name="sample_visible" value="false"/><rgb name="diffuse_reflectance" value="0.3, 0.6, 0.2"/></bsdf>', "eval"),
 ]
 
 
