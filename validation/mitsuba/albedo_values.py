@@ -11,7 +11,8 @@ undoing the radiance scaling):
   a lines (all): the mean and standard error of Mitsuba's own sample weight over N samples,
     the albedo a path continues with. penumbra's test uses q where present, else a.
 Where the two disagree (z > 4), Mitsuba's sampling routine does not draw its own pdf exactly
-(printed to stderr; see docs/testing.md).
+(printed to stderr; the list is in the doc comment of albedo_matches_mitsuba in
+tests/bsdf_mitsuba.rs).
 
 Usage: python validation/mitsuba/albedo_values.py [OUT]   (default tests/data/mitsuba_albedo.txt)
 Mitsuba 3.9.1, llvm_ad_rgb variant (vectorised: 1e6 samples per line in well under a second).
