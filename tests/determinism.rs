@@ -60,3 +60,24 @@ fn a_continued_render_adds_up_to_the_uninterrupted_one() {
     }
     assert_eq!(whole.weight, parts.weight);
 }
+
+/// The path statistics count what happened: inside a closed diffuse box with unbounded depth
+/// every camera path ends by Russian roulette, so `rr_terminated` is the number of paths, and
+/// each path makes at least rr_depth bounces.
+#[test]
+fn path_statistics_count_every_roulette_termination() {
+    let scene = scene_from_str(
+        r#"<scene version="3.0.0">
+        <integrator type="path"><integer name="max_depth" value="-1"/><integer name="rr_depth" value="3"/></integrator>
+        <sensor type="perspective"><float name="fov" value="60"/>
+            <film type="hdrfilm"><integer name="width" value="8"/><integer name="height" value="6"/></film></sensor>
+        <shape type="cube"><transform name="to_world"><scale value="4"/></transform>
+            <bsdf type="twosided"><bsdf type="diffuse"><rgb name="reflectance" value="0.5"/></bsdf></bsdf></shape>
+    </scene>"#,
+    );
+    let spp = 16;
+    let out = render_scene(&scene, spp, 3, None);
+    let paths = 8 * 6 * spp as u64;
+    assert_eq!(out.stats.path.rr_terminated, paths, "{:?}", out.stats.path);
+    assert!(out.stats.path.bounces >= 3 * paths, "{:?}", out.stats.path);
+}
