@@ -162,3 +162,53 @@ impl EnvMapEmitter {
         self.to_world
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The direction whose (u, v) is given: the inverse of `uv` for the identity rotation.
+    fn direction(u: f32, v: f32) -> Vec3 {
+        let (st, ct) = (PI * v).sin_cos();
+        let (sp, cp) = (2.0 * PI * u).sin_cos();
+        Vec3::new(st * sp, ct, -st * cp)
+    }
+
+    /// Bilinear lookups as documented at the top: a texel's value at its centre (columns at
+    /// u = (i + ½)/W, rows at v = j/(H − 1)), the mean of the four around a cell's middle,
+    /// wrapping around in u (the pole rows, where u is undefined, left out); independent of
+    /// the sampling code.
+    #[test]
+    fn eval_interpolates_texel_centres_bilinearly() {
+        let (w, h) = (4, 4);
+        let texels: Vec<[f32; 3]> = (0..w * h)
+            .map(|k| [1.0 + k as f32, 2.0 * k as f32 + 0.5, (k * k) as f32])
+            .collect();
+        let e = EnvMapEmitter::new(w, h, &texels, 2.0, Mat3::IDENTITY).unwrap();
+        let t = |i: usize, j: usize| Vec3::from(texels[j * w + i % w]) * 2.0;
+        for j in 1..h - 1 {
+            for i in 0..w {
+                let d = direction((i as f32 + 0.5) / w as f32, j as f32 / (h - 1) as f32);
+                let got = e.eval(d);
+                assert!(
+                    (got - t(i, j)).abs().max_element() < 1e-3,
+                    "texel ({i}, {j}): {got}"
+                );
+            }
+        }
+        for j in 0..h - 1 {
+            for i in 0..w {
+                let d = direction(
+                    (i as f32 + 1.0) / w as f32,
+                    (j as f32 + 0.5) / (h - 1) as f32,
+                );
+                let want = (t(i, j) + t(i + 1, j) + t(i, j + 1) + t(i + 1, j + 1)) / 4.0;
+                let got = e.eval(d);
+                assert!(
+                    (got - want).abs().max_element() < 1e-3,
+                    "cell ({i}, {j}): {got} vs {want}"
+                );
+            }
+        }
+    }
+}
