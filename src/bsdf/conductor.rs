@@ -38,6 +38,7 @@ impl Conductor {
             weight: f * self.specular_reflectance,
             eta: 1.0,
             delta: true,
+            null: false,
         })
     }
 }

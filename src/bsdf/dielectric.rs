@@ -42,6 +42,7 @@ impl Dielectric {
                 weight: self.specular_reflectance,
                 eta: 1.0,
                 delta: true,
+                null: false,
             })
         } else {
             let wo = refract(wi, Vec3::Z, fr.cos_theta_t, fr.eta_ti);
@@ -51,6 +52,7 @@ impl Dielectric {
                 weight: self.specular_transmittance * (fr.eta_ti * fr.eta_ti),
                 eta: fr.eta_it,
                 delta: true,
+                null: false,
             })
         }
     }

@@ -39,6 +39,7 @@ impl Diffuse {
             weight: self.reflectance,
             eta: 1.0,
             delta: false,
+            null: false,
         })
     }
 }

@@ -47,6 +47,10 @@ pub struct BsdfSample {
     pub eta: f32,
     /// The sampled lobe is a Dirac delta.
     pub delta: bool,
+    /// The sampled lobe is Mitsuba's `Null` one: light passes straight through (`wo = −wi`),
+    /// as through a `null` BSDF, a mask's holes or a thin dielectric's transmission. Volumetric
+    /// path tracers do not count it as a scattering event.
+    pub null: bool,
 }
 
 impl BsdfSample {
@@ -65,6 +69,7 @@ impl BsdfSample {
             weight,
             eta,
             delta: false,
+            null: false,
         })
     }
 }
@@ -156,6 +161,17 @@ impl Bsdf {
             Bsdf::Principled(b) => b.is_transmissive(),
             Bsdf::PrincipledThin(b) => b.is_transmissive(),
             _ => false,
+        }
+    }
+
+    /// The fraction of light that passes straight through the surface from `wi` (Mitsuba's
+    /// `eval_null_transmission`): what a shadow ray of a volumetric path tracer carries
+    /// across it. Only the thin dielectric's transmission is such a `Null` lobe here.
+    #[inline]
+    pub fn null_transmission(&self, wi: Vec3) -> Spectrum {
+        match self {
+            Bsdf::ThinDielectric(b) => b.null_transmission(wi),
+            _ => Spectrum::ZERO,
         }
     }
 

@@ -132,6 +132,7 @@ impl Plastic {
                 weight: self.specular_reflectance * (f_i / ps),
                 eta: 1.0,
                 delta: true,
+                null: false,
             });
         }
         let wo = square_to_cosine_hemisphere(u2);

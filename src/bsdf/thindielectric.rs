@@ -29,6 +29,12 @@ impl ThinDielectric {
         }
     }
 
+    /// The straight-through transmission (1 − R') · `specular_transmittance`, Mitsuba's
+    /// `eval_null_transmission`.
+    pub fn null_transmission(&self, wi: Vec3) -> Spectrum {
+        self.specular_transmittance * (1.0 - self.reflectance(wi.z))
+    }
+
     pub fn eval(&self, _wi: Vec3, _wo: Vec3) -> Spectrum {
         Spectrum::ZERO
     }
@@ -42,10 +48,15 @@ impl ThinDielectric {
             return None;
         }
         let r = self.reflectance(wi.z);
-        let (wo, pdf, weight) = if u1 < r {
-            (Vec3::new(-wi.x, -wi.y, wi.z), r, self.specular_reflectance)
+        let (wo, pdf, weight, null) = if u1 < r {
+            (
+                Vec3::new(-wi.x, -wi.y, wi.z),
+                r,
+                self.specular_reflectance,
+                false,
+            )
         } else {
-            (-wi, 1.0 - r, self.specular_transmittance)
+            (-wi, 1.0 - r, self.specular_transmittance, true)
         };
         Some(BsdfSample {
             wo,
@@ -53,6 +64,7 @@ impl ThinDielectric {
             weight,
             eta: 1.0,
             delta: true,
+            null,
         })
     }
 }

@@ -131,6 +131,40 @@ impl ShadingBsdf {
         })
     }
 
+    /// The fraction of light passing straight through the surface from `wi` (Mitsuba's
+    /// `eval_null_transmission`): 1 for `null`, the holes of a mask, the thin dielectric's
+    /// transmission, blended and two-sided as those adapters blend and flip.
+    pub fn null_transmission(&self, wi: Vec3) -> Spectrum {
+        self.null_node(0, wi)
+    }
+
+    fn null_node(&self, i: u8, wi: Vec3) -> Spectrum {
+        match self.node(i) {
+            Node::Leaf(b) => b.null_transmission(wi),
+            Node::TwoSided { front, back } => {
+                if front == back {
+                    self.null_node(*front, Vec3::new(wi.x, wi.y, wi.z.abs()))
+                } else if wi.z > 0.0 {
+                    self.null_node(*front, wi)
+                } else if wi.z < 0.0 {
+                    self.null_node(*back, twosided::flip(wi))
+                } else {
+                    Spectrum::ZERO
+                }
+            }
+            Node::Mask { opacity, nested } => {
+                Spectrum::ONE - (Spectrum::ONE - self.null_node(*nested, wi)) * *opacity
+            }
+            Node::Blend { weight, nested } => {
+                self.null_node(nested[0], wi) * (1.0 - weight)
+                    + self.null_node(nested[1], wi) * *weight
+            }
+            // Mitsuba's normal and bump maps do not pass null transmission on (BSDF default: 0).
+            Node::Perturb { .. } => Spectrum::ZERO,
+            Node::Null => Spectrum::ONE,
+        }
+    }
+
     pub(crate) fn eval_node(&self, i: u8, wi: Vec3, wo: Vec3) -> Spectrum {
         match self.node(i) {
             Node::Leaf(b) => b.eval(wi, wo),
@@ -206,5 +240,6 @@ pub(crate) fn null_sample(wi: Vec3, pdf: f32) -> BsdfSample {
         weight: Spectrum::ONE,
         eta: 1.0,
         delta: true,
+        null: true,
     }
 }
