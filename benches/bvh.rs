@@ -29,6 +29,8 @@ fn bunny() -> Vec<Shape> {
         geometry: ShapeGeometry::Mesh(mesh),
         material: 0,
         emitter: None,
+        interior: None,
+        exterior: None,
     }]
 }
 
@@ -64,6 +66,8 @@ pub fn sphere_mesh(n: usize) -> Vec<Shape> {
         geometry: ShapeGeometry::Mesh(mesh),
         material: 0,
         emitter: None,
+        interior: None,
+        exterior: None,
     }]
 }
 

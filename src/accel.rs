@@ -728,6 +728,8 @@ mod tests {
             geometry,
             material: 0,
             emitter: None,
+            interior: None,
+            exterior: None,
         }
     }
 

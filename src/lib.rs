@@ -18,6 +18,8 @@ pub mod integrator;
 pub mod io;
 pub mod material;
 pub mod math;
+pub mod medium;
+pub mod phase;
 pub mod progressive;
 pub mod render;
 pub mod sampler;
@@ -26,6 +28,7 @@ pub mod scene;
 pub mod shape;
 pub mod spectrum;
 pub mod texture;
+pub mod volume;
 
 // The measurement side.
 pub mod study;

@@ -215,11 +215,11 @@ fn rr_depth_must_be_positive() {
 
 #[test]
 fn unknown_integrator_fails() {
-    let xml = with_sensor(r#"<integrator type="volpath"/>"#);
+    let xml = with_sensor(r#"<integrator type="ptracer"/>"#);
     assert_error(
         &xml,
         "<integrator",
-        &["unsupported plugin <integrator type=\"volpath\">"],
+        &["unsupported plugin <integrator type=\"ptracer\">"],
     );
 }
 
@@ -1983,8 +1983,8 @@ fn direct_and_moment_integrators() {
             "one nested integrator",
         ),
         (
-            r#"<integrator type="volpath"/>"#,
-            "unsupported plugin <integrator type=\"volpath\">",
+            r#"<integrator type="ptracer"/>"#,
+            "unsupported plugin <integrator type=\"ptracer\">",
         ),
     ] {
         let e = error_body(body);

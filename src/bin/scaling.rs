@@ -43,6 +43,8 @@ fn sphere(n: usize) -> Vec<Shape> {
         geometry: ShapeGeometry::Mesh(Mesh::new(p, None, None, t, false)),
         material: 0,
         emitter: None,
+        interior: None,
+        exterior: None,
     }]
 }
 

@@ -3,9 +3,13 @@
 
 pub mod direct;
 pub mod path;
+pub mod volpath;
+pub mod volpathmis;
 
 pub use direct::DirectIntegrator;
 pub use path::PathIntegrator;
+pub use volpath::VolPathIntegrator;
+pub use volpathmis::VolPathMisIntegrator;
 
 use crate::bsdf::Spectrum;
 use crate::emitter::Emitter;
@@ -39,6 +43,8 @@ impl std::ops::AddAssign for PathStats {
 pub enum Integrator {
     Path(PathIntegrator),
     Direct(DirectIntegrator),
+    VolPath(VolPathIntegrator),
+    VolPathMis(VolPathMisIntegrator),
 }
 
 impl Integrator {
@@ -53,6 +59,8 @@ impl Integrator {
         match self {
             Integrator::Path(p) => p.li(scene, ray, sampler, stats),
             Integrator::Direct(d) => d.li(scene, ray, sampler, stats),
+            Integrator::VolPath(v) => v.li(scene, ray, sampler, stats),
+            Integrator::VolPathMis(v) => v.li(scene, ray, sampler, stats),
         }
     }
 }

@@ -45,6 +45,10 @@ pub struct Scene {
     pub environment: Option<u32>,
     /// Centre and radius of a sphere bounding every shape.
     pub bounding_sphere: (Vec3, f32),
+    /// The participating media, referred to by index from shapes and the sensor.
+    pub media: Vec<crate::medium::Medium>,
+    /// The medium the sensor sits in (camera rays start in it).
+    pub camera_medium: Option<u32>,
 }
 
 impl Scene {
@@ -121,6 +125,42 @@ impl Scene {
         Ray::new(from, v / len, len * (1.0 - SHADOW_EPSILON))
     }
 
+    /// The shadow ray from a point `p` off any surface (a scattering event in a medium) to
+    /// the emitter point of `ds`: as [`Scene::shadow_ray`] without the offset at `p`.
+    #[inline]
+    pub fn shadow_ray_from_point(p: Vec3, ds: &DirectionSample) -> Ray {
+        if ds.is_infinite() {
+            return Ray::new(p, ds.d, f32::INFINITY);
+        }
+        let to = if ds.n == Vec3::ZERO {
+            ds.p
+        } else {
+            offset_ray_origin(ds.p, ds.p_error, ds.n, -ds.d)
+        };
+        let v = to - p;
+        let len = v.length();
+        Ray::new(p, v / len, len * (1.0 - SHADOW_EPSILON))
+    }
+
+    /// Whether the shape hit at `si` bounds a medium (has an interior or exterior one).
+    #[inline]
+    pub fn is_medium_transition(&self, si: &SurfaceInteraction) -> bool {
+        let s = &self.shapes[si.shape as usize];
+        s.interior.is_some() || s.exterior.is_some()
+    }
+
+    /// The medium a ray leaving `si` in direction `d` enters: the exterior one along the
+    /// geometric normal, the interior one against it (Mitsuba's `target_medium`).
+    #[inline]
+    pub fn target_medium(&self, si: &SurfaceInteraction, d: Vec3) -> Option<u32> {
+        let s = &self.shapes[si.shape as usize];
+        if d.dot(si.ng) > 0.0 {
+            s.exterior
+        } else {
+            s.interior
+        }
+    }
+
     /// The BSDF at surface interaction `si`, its textures looked up.
     #[inline]
     pub fn shading_bsdf(&self, si: &SurfaceInteraction) -> ShadingBsdf {
@@ -160,6 +200,12 @@ impl Scene {
         si: &SurfaceInteraction,
         u: Vec2,
     ) -> Option<DirectionSample> {
+        self.sample_emitter_direction_at(si.p, u)
+    }
+
+    /// [`Scene::sample_emitter_direction`] from a point `p` that need not lie on a surface
+    /// (a scattering event in a medium).
+    pub fn sample_emitter_direction_at(&self, p: Vec3, u: Vec2) -> Option<DirectionSample> {
         if self.emitters.is_empty() {
             return None;
         }
@@ -167,7 +213,7 @@ impl Scene {
         let x = u.x * n as f32;
         let i = (x as usize).min(n - 1);
         let ux = (x - i as f32).clamp(0.0, 1.0 - f32::EPSILON / 2.0);
-        let mut ds = self.emitters[i].sample_direction(si.p, Vec2::new(ux, u.y), &self.shapes)?;
+        let mut ds = self.emitters[i].sample_direction(p, Vec2::new(ux, u.y), &self.shapes)?;
         ds.pdf *= self.emitter_pmf(i);
         Some(ds)
     }

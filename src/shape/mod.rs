@@ -172,4 +172,8 @@ pub struct Shape {
     pub material: u32,
     /// Index into `Scene::emitters`, for shapes carrying an area emitter.
     pub emitter: Option<u32>,
+    /// Indices into `Scene::media` of the media inside and outside the shape (Mitsuba's
+    /// `interior` and `exterior`).
+    pub interior: Option<u32>,
+    pub exterior: Option<u32>,
 }

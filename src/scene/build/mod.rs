@@ -9,7 +9,8 @@ mod mesh;
 pub use mesh::{load_mesh, load_obj, mesh_from_bytes, obj_from_bytes, MeshFormat, MeshOptions};
 
 use super::description::{
-    EmitterDesc, FilterDesc, IntegratorDesc, SceneDescription, ShapeDesc, ShapeKind,
+    EmitterDesc, FilterDesc, IntegratorDesc, MediumDesc, PhaseDesc, SceneDescription, ShapeDesc,
+    ShapeKind, VolumeDesc,
 };
 use super::Scene;
 use crate::accel::{Accel, Group, Instance};
@@ -20,9 +21,15 @@ use crate::emitter::{
 };
 use crate::error::{Error, Result};
 use crate::film::Filter;
-use crate::integrator::{DirectIntegrator, Integrator, PathIntegrator};
+use crate::integrator::{
+    DirectIntegrator, Integrator, PathIntegrator, VolPathIntegrator, VolPathMisIntegrator,
+};
+use crate::medium::{Heterogeneous, Homogeneous, Medium, MediumKind};
+use crate::phase::{HenyeyGreenstein, PhaseFunction};
 use crate::sampler::Sampler;
 use crate::shape::{Cylinder, Disk, Mesh, SdfGrid, Shape, ShapeGeometry, Sphere};
+use crate::texture::bitmap::Wrap;
+use crate::volume::{constant::ConstVolume, GridVolume, Volume};
 use glam::{DMat3, DMat4, DVec3, Vec2, Vec3};
 
 /// Builds the scene in camera-relative coordinates: every transform is composed in f64 with
@@ -77,6 +84,8 @@ pub fn build(desc: &SceneDescription) -> Result<Scene> {
             geometry,
             material,
             emitter: None,
+            interior: sd.interior.map(|i| i as u32),
+            exterior: sd.exterior.map(|i| i as u32),
         });
         match &sd.emitter {
             None => {}
@@ -119,6 +128,8 @@ pub fn build(desc: &SceneDescription) -> Result<Scene> {
                 geometry,
                 material,
                 emitter: None,
+                interior: None,
+                exterior: None,
             });
         }
         groups.push(Group {
@@ -137,7 +148,43 @@ pub fn build(desc: &SceneDescription) -> Result<Scene> {
         warnings.push("the scene has no emitter: the image will be black".into());
     }
     let bounding_sphere = bounding_sphere(&accel);
+    let media = desc
+        .media
+        .iter()
+        .map(|m| medium(m, shift).map_err(|e| Error::within(&m.location, e)))
+        .collect::<Result<Vec<_>>>()?;
+    let depth = |d: i64| {
+        if d < 0 {
+            u32::MAX
+        } else {
+            d.min(u32::MAX as i64) as u32
+        }
+    };
     let integrator = match desc.integrator {
+        IntegratorDesc::VolPath {
+            mis,
+            max_depth,
+            rr_depth,
+            hide_emitters,
+            use_spectral_mis,
+        } => {
+            let max_depth = depth(max_depth);
+            let rr_depth = rr_depth.clamp(1, u32::MAX as i64) as u32;
+            if mis {
+                Integrator::VolPathMis(VolPathMisIntegrator {
+                    max_depth,
+                    rr_depth,
+                    hide_emitters,
+                    spectral_mis: use_spectral_mis,
+                })
+            } else {
+                Integrator::VolPath(VolPathIntegrator {
+                    max_depth,
+                    rr_depth,
+                    hide_emitters,
+                })
+            }
+        }
         IntegratorDesc::Path {
             max_depth,
             rr_depth,
@@ -183,6 +230,67 @@ pub fn build(desc: &SceneDescription) -> Result<Scene> {
         warnings,
         environment,
         bounding_sphere,
+        media,
+        camera_medium: s.medium.map(|i| i as u32),
+    })
+}
+
+/// A medium of the scene; `shift` maps world space to the camera-relative space the scene is
+/// built in (volumes are placed by their `to_world`).
+fn medium(m: &MediumDesc, shift: DMat4) -> Result<Medium> {
+    let sigma_t = volume(&m.sigma_t, shift)?;
+    let albedo = volume(&m.albedo, shift)?;
+    let scale = m.scale as f32;
+    let kind = if m.homogeneous {
+        MediumKind::Homogeneous(Homogeneous {
+            sigma_t,
+            albedo,
+            scale,
+        })
+    } else {
+        MediumKind::Heterogeneous(Heterogeneous::new(sigma_t, albedo, scale))
+    };
+    Ok(Medium {
+        kind,
+        phase: match m.phase {
+            PhaseDesc::Isotropic => PhaseFunction::Isotropic,
+            PhaseDesc::HenyeyGreenstein { g } => {
+                PhaseFunction::HenyeyGreenstein(HenyeyGreenstein { g: g as f32 })
+            }
+        },
+        sample_emitters: m.sample_emitters,
+    })
+}
+
+fn volume(v: &VolumeDesc, shift: DMat4) -> Result<Volume> {
+    Ok(match v {
+        VolumeDesc::Constant { value, to_world } => Volume::Constant(ConstVolume::new(
+            value.as_vec3(),
+            (shift * *to_world).as_mat4(),
+        )),
+        VolumeDesc::Grid {
+            filename,
+            to_world,
+            use_grid_bbox,
+            trilinear,
+            wrap,
+        } => {
+            let bad = |message: String| Error::Mesh {
+                path: filename.clone(),
+                message,
+            };
+            let data = crate::io::vol::read_vol(filename).map_err(bad)?;
+            let wrap = Wrap::from_name(wrap).map_err(Error::Invalid)?;
+            let grid = GridVolume::new(
+                data,
+                (shift * *to_world).as_mat4(),
+                *use_grid_bbox,
+                *trilinear,
+                wrap,
+            )
+            .map_err(bad)?;
+            Volume::Grid(Box::new(grid))
+        }
     })
 }
 

@@ -1,4 +1,5 @@
-//! Integrators: Mitsuba's `path` and `direct`, optionally wrapped in `moment`.
+//! Integrators: Mitsuba's `path`, `direct`, `volpath` and `volpathmis`, optionally wrapped
+//! in `moment`.
 
 use super::*;
 
@@ -9,6 +10,16 @@ pub enum IntegratorDesc {
         max_depth: i64,
         rr_depth: i64,
         hide_emitters: bool,
+    },
+    /// Mitsuba's `volpath` (volumetric path tracing) and `volpathmis` (the same with
+    /// spectral and emitter MIS; `use_spectral_mis` only there). `max_depth` −1 means
+    /// unbounded.
+    VolPath {
+        mis: bool,
+        max_depth: i64,
+        rr_depth: i64,
+        hide_emitters: bool,
+        use_spectral_mis: bool,
     },
     /// Mitsuba's `direct` integrator: `emitter_samples` and `bsdf_samples` per pixel sample
     /// (each defaulting to `shading_samples`, default 1), combined with the power heuristic.
@@ -57,10 +68,15 @@ pub(super) fn integrator_desc(o: &Object) -> Result<(IntegratorDesc, bool)> {
     no_children(o)?;
     let mut p = Props::new(o);
     let desc = match o.plugin.as_str() {
-        "path" => {
+        plugin @ ("path" | "volpath" | "volpathmis") => {
             let max_depth = p.int("max_depth", -1)?;
             let rr_depth = p.int("rr_depth", 5)?;
             let hide_emitters = p.boolean("hide_emitters", false)?;
+            let use_spectral_mis = if plugin == "volpathmis" {
+                p.boolean("use_spectral_mis", true)?
+            } else {
+                true
+            };
             p.finish()?;
             if max_depth < -1 {
                 return Err(Error::scene(
@@ -77,10 +93,20 @@ pub(super) fn integrator_desc(o: &Object) -> Result<(IntegratorDesc, bool)> {
                     format!("rr_depth of {} must be > 0, got {rr_depth}", describe(o)),
                 ));
             }
-            IntegratorDesc::Path {
-                max_depth,
-                rr_depth,
-                hide_emitters,
+            if plugin == "path" {
+                IntegratorDesc::Path {
+                    max_depth,
+                    rr_depth,
+                    hide_emitters,
+                }
+            } else {
+                IntegratorDesc::VolPath {
+                    mis: plugin == "volpathmis",
+                    max_depth,
+                    rr_depth,
+                    hide_emitters,
+                    use_spectral_mis,
+                }
             }
         }
         "direct" => {

@@ -12,6 +12,7 @@
 mod bsdf;
 mod emitter;
 mod integrator;
+mod medium;
 mod sensor;
 mod shape;
 mod texture;
@@ -19,6 +20,7 @@ mod texture;
 pub use bsdf::*;
 pub use emitter::*;
 pub use integrator::*;
+pub use medium::*;
 pub use sensor::*;
 pub use shape::*;
 pub use texture::{BitmapDesc, TextureDesc};
@@ -45,6 +47,8 @@ pub struct SceneDescription {
     pub shape_groups: Vec<ShapeGroupDesc>,
     /// Emitters declared at the scene level (point, spot, directional, constant, envmap).
     pub emitters: Vec<EmitterDesc>,
+    /// The participating media that shapes (`interior`, `exterior`) and the sensor refer to.
+    pub media: Vec<MediumDesc>,
     /// Things the user should know that are not errors (clamped spectra, unused emitters).
     pub warnings: Vec<String>,
 }
@@ -78,6 +82,13 @@ impl SceneDescription {
         }
         for e in &self.emitters {
             e.files(&mut files);
+        }
+        for m in &self.media {
+            for v in [&m.sigma_t, &m.albedo] {
+                if let VolumeDesc::Grid { filename, .. } = v {
+                    files.push(filename.as_path());
+                }
+            }
         }
         files.sort();
         files.dedup();
@@ -272,6 +283,8 @@ pub(super) struct Ctx<'a> {
     /// Shape groups met so far, keyed by the address of their (shared) XML object, so that
     /// every instance of one group refers to one description.
     pub groups: RefCell<Vec<(*const Object, ShapeGroupDesc)>>,
+    /// Media met so far, keyed like `groups`.
+    pub media: RefCell<Vec<(*const Object, MediumDesc)>>,
 }
 
 impl Ctx<'_> {
@@ -350,6 +363,7 @@ pub fn from_xml(doc: &Document) -> Result<SceneDescription> {
         resolver: &doc.resolver,
         warnings: RefCell::new(doc.warnings.clone()),
         groups: RefCell::new(Vec::new()),
+        media: RefCell::new(Vec::new()),
     };
     let mut integrator = None;
     let mut sensor = None;
@@ -374,7 +388,7 @@ pub fn from_xml(doc: &Document) -> Result<SceneDescription> {
                         "penumbra renders scenes with exactly one <sensor>",
                     ));
                 }
-                sensor = Some(sensor_desc(o)?);
+                sensor = Some(sensor_desc(&cx, o)?);
             }
             // A shape group is only seen through its instances (Mitsuba: "not visible on
             // its own"); check it now so that errors surface even when it is never used.
@@ -406,6 +420,11 @@ pub fn from_xml(doc: &Document) -> Result<SceneDescription> {
             "bsdf" => {
                 bsdf_desc(&cx, o)?;
             }
+            // Declared for later <ref>s (shapes' interior/exterior, the sensor's medium),
+            // checked now like BSDFs.
+            "medium" => {
+                medium_index(&cx, o)?;
+            }
             // Declared for later <ref>s, checked now like BSDFs.
             "texture" => {
                 texture::texture_desc(&cx, o, crate::spectrum::ColorRole::Reflectance)?;
@@ -435,6 +454,7 @@ pub fn from_xml(doc: &Document) -> Result<SceneDescription> {
         false,
     ));
     let shape_groups = cx.groups.into_inner().into_iter().map(|(_, g)| g).collect();
+    let media = cx.media.into_inner().into_iter().map(|(_, m)| m).collect();
     Ok(SceneDescription {
         integrator,
         moment,
@@ -442,6 +462,7 @@ pub fn from_xml(doc: &Document) -> Result<SceneDescription> {
         shapes,
         shape_groups,
         emitters,
+        media,
         warnings: cx.warnings.into_inner(),
     })
 }

@@ -7,6 +7,8 @@ use crate::sampler::SamplerKind;
 
 #[derive(Clone, Debug, PartialEq)]
 pub struct SensorDesc {
+    /// Index into [`SceneDescription::media`] of the medium the sensor sits in.
+    pub medium: Option<usize>,
     /// Field of view in degrees along `fov_axis` (perspective and thin lens; unused by the
     /// orthographic sensor). Without `fov`, Mitsuba's default `focal_length` of 50 mm on a
     /// 36 × 24 mm film gives the diagonal field of view.
@@ -114,7 +116,7 @@ pub(super) fn fov_desc(p: &mut Props, o: &Object) -> Result<(f64, FovAxis)> {
     }
 }
 
-pub(super) fn sensor_desc(o: &Object) -> Result<SensorDesc> {
+pub(super) fn sensor_desc(cx: &Ctx, o: &Arc<Object>) -> Result<SensorDesc> {
     if !matches!(
         o.plugin.as_str(),
         "perspective" | "thinlens" | "orthographic"
@@ -177,14 +179,17 @@ pub(super) fn sensor_desc(o: &Object) -> Result<SensorDesc> {
     }
     let mut film = None;
     let mut sampler = None;
+    let mut medium = None;
     for Child { object: c, .. } in &o.children {
         match c.tag.as_str() {
             "film" if film.is_none() => film = Some(film_desc(c)?),
             "sampler" if sampler.is_none() => sampler = Some(sampler_desc(c)?),
+            "medium" if medium.is_none() => medium = Some(medium_index(cx, c)?),
             _ => return Err(unexpected_child(o, c)),
         }
     }
     Ok(SensorDesc {
+        medium,
         fov,
         fov_axis,
         near_clip,

@@ -52,6 +52,9 @@ pub struct ShapeDesc {
     pub flip_normals: bool,
     pub bsdf: BsdfDesc,
     pub emitter: Option<EmitterDesc>,
+    /// Indices into [`SceneDescription::media`] of the media inside and outside the shape.
+    pub interior: Option<usize>,
+    pub exterior: Option<usize>,
     pub location: Location,
 }
 
@@ -201,8 +204,37 @@ pub(super) fn shape_desc(cx: &Ctx, o: &Arc<Object>) -> Result<ShapeDesc> {
     }
     let mut bsdf = None;
     let mut emitter = None;
+    let mut interior = None;
+    let mut exterior = None;
     if instance_of.is_none() {
-        for Child { object: c, .. } in &o.children {
+        for Child { name, object: c } in &o.children {
+            if c.tag == "medium" {
+                let slot = match name.as_deref() {
+                    Some("interior") => &mut interior,
+                    Some("exterior") => &mut exterior,
+                    _ => {
+                        return Err(Error::scene(
+                            &c.location,
+                            format!(
+                                "a medium in {} must be named \"interior\" or \"exterior\"",
+                                describe(o)
+                            ),
+                        ))
+                    }
+                };
+                if slot.is_some() {
+                    return Err(Error::scene(
+                        &c.location,
+                        format!(
+                            "{} has two {} media",
+                            describe(o),
+                            name.as_deref().unwrap_or("")
+                        ),
+                    ));
+                }
+                *slot = Some(medium_index(cx, c)?);
+                continue;
+            }
             match c.tag.as_str() {
                 "bsdf" if bsdf.is_none() => bsdf = Some(bsdf_desc(cx, c)?),
                 "emitter" if emitter.is_none() => emitter = Some(area_emitter_desc(cx, c)?),
@@ -239,6 +271,8 @@ pub(super) fn shape_desc(cx: &Ctx, o: &Arc<Object>) -> Result<ShapeDesc> {
         flip_normals,
         bsdf,
         emitter,
+        interior,
+        exterior,
         location: o.location.clone(),
     })
 }
@@ -263,6 +297,12 @@ pub(super) fn shape_group(cx: &Ctx, o: &Arc<Object>) -> Result<usize> {
             ));
         }
         let s = shape_desc(cx, c)?;
+        if s.interior.is_some() || s.exterior.is_some() {
+            return Err(Error::scene(
+                &c.location,
+                "penumbra does not support media on shapes inside a shapegroup",
+            ));
+        }
         if s.emitter.is_some() {
             return Err(Error::scene(
                 &c.location,

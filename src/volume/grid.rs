@@ -1,0 +1,210 @@
+//! Mitsuba's `gridvolume`: values on a regular grid read from a `.vol` file
+//! ([`crate::io::vol`]), looked up with trilinear interpolation (or nearest neighbour) between
+//! sample points at the cell centres of the unit cube, as Dr.Jit's textures do.
+//!
+//! | parameter | type | default |
+//! |---|---|---|
+//! | `filename` | `.vol` file, 1 or 3 channels | required |
+//! | `filter_type` | `trilinear` or `nearest` | `trilinear` |
+//! | `wrap_mode` | `clamp`, `repeat` or `mirror` | `clamp` |
+//! | `use_grid_bbox` | the file's box places the grid (after `to_world`) | false |
+//! | `raw` | accepted (RGB rendering never converts values) | false |
+//! | `to_world` | transform of the unit cube | identity |
+//!
+//! A world point p is looked up at local coordinates `to_local · p` (to_local = to_world⁻¹,
+//! preceded by the map of the file's box to the unit cube with `use_grid_bbox`); outside
+//! [0, 1]³ the wrap mode decides. One-channel grids evaluate to grey RGB.
+//!
+//! ```xml
+//! <volume type="gridvolume" name="sigma_t">
+//!     <string name="filename" value="textures/sigmat.vol"/>
+//! </volume>
+//! ```
+
+use crate::io::vol::VolData;
+use crate::texture::bitmap::Wrap;
+use glam::{Mat4, Vec3};
+
+#[derive(Clone, Debug)]
+pub struct GridVolume {
+    res: [usize; 3],
+    /// 1 or 3.
+    channels: usize,
+    data: Vec<f32>,
+    /// World → unit-cube texture coordinates.
+    to_local: Mat4,
+    trilinear: bool,
+    wrap: Wrap,
+    /// Largest value of any channel.
+    pub max: f32,
+    /// World-space box of the grid.
+    pub bbox: [Vec3; 2],
+}
+
+impl GridVolume {
+    /// A grid volume of `vol`'s values; `Err` for a channel count other than 1 or 3, a
+    /// non-finite value or a singular transform.
+    pub fn new(
+        vol: VolData,
+        to_world: Mat4,
+        use_grid_bbox: bool,
+        trilinear: bool,
+        wrap: Wrap,
+    ) -> Result<Self, String> {
+        if vol.channels != 1 && vol.channels != 3 {
+            return Err(format!(
+                "a gridvolume needs 1 or 3 channels, the file has {}",
+                vol.channels
+            ));
+        }
+        if let Some(v) = vol.data.iter().find(|v| !v.is_finite()) {
+            return Err(format!("the grid holds a non-finite value ({v})"));
+        }
+        let mut to_local = to_world.inverse();
+        if use_grid_bbox {
+            let lo = Vec3::from(vol.bbox[0]);
+            let hi = Vec3::from(vol.bbox[1]);
+            let ext = hi - lo;
+            if ext.min_element().is_nan() || ext.min_element() <= 0.0 || !ext.is_finite() {
+                return Err(format!(
+                    "use_grid_bbox: the file's bounding box {lo} .. {hi} is empty"
+                ));
+            }
+            to_local = Mat4::from_scale(ext.recip()) * Mat4::from_translation(-lo) * to_local;
+        }
+        if !to_local.is_finite() {
+            return Err("the gridvolume's to_world is singular".into());
+        }
+        let local_to_world = to_local.inverse();
+        let max = vol.data.iter().copied().fold(f32::NEG_INFINITY, f32::max);
+        Ok(GridVolume {
+            res: vol.res,
+            channels: vol.channels,
+            bbox: super::unit_cube_bbox(&local_to_world),
+            data: vol.data,
+            to_local,
+            trilinear,
+            wrap,
+            max,
+        })
+    }
+
+    #[inline]
+    fn fetch(&self, x: usize, y: usize, z: usize) -> Vec3 {
+        let i = ((z * self.res[1] + y) * self.res[0] + x) * self.channels;
+        if self.channels == 1 {
+            Vec3::splat(self.data[i])
+        } else {
+            Vec3::new(self.data[i], self.data[i + 1], self.data[i + 2])
+        }
+    }
+
+    /// The value at world-space point `p`.
+    #[inline]
+    pub fn eval(&self, p: Vec3) -> Vec3 {
+        let q = self.to_local.transform_point3(p);
+        if !q.is_finite() {
+            return Vec3::ZERO;
+        }
+        let [nx, ny, nz] = self.res;
+        if !self.trilinear {
+            let x = self.wrap.apply((q.x * nx as f32).floor() as i64, nx);
+            let y = self.wrap.apply((q.y * ny as f32).floor() as i64, ny);
+            let z = self.wrap.apply((q.z * nz as f32).floor() as i64, nz);
+            return self.fetch(x, y, z);
+        }
+        let pos = q * Vec3::new(nx as f32, ny as f32, nz as f32) - 0.5;
+        let f0 = pos.floor();
+        let w1 = pos - f0;
+        let i0 = [f0.x as i64, f0.y as i64, f0.z as i64];
+        let xs = [self.wrap.apply(i0[0], nx), self.wrap.apply(i0[0] + 1, nx)];
+        let ys = [self.wrap.apply(i0[1], ny), self.wrap.apply(i0[1] + 1, ny)];
+        let zs = [self.wrap.apply(i0[2], nz), self.wrap.apply(i0[2] + 1, nz)];
+        let wx = [1.0 - w1.x, w1.x];
+        let wy = [1.0 - w1.y, w1.y];
+        let wz = [1.0 - w1.z, w1.z];
+        let mut acc = Vec3::ZERO;
+        for (z, wz) in zs.iter().zip(wz) {
+            for (y, wy) in ys.iter().zip(wy) {
+                for (x, wx) in xs.iter().zip(wx) {
+                    acc += self.fetch(*x, *y, *z) * (wx * wy * wz);
+                }
+            }
+        }
+        acc
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A 2×1×1 grid with values 1 and 3: texel centres at x = 0.25 and 0.75.
+    fn two_texels(to_world: Mat4, use_grid_bbox: bool, trilinear: bool) -> GridVolume {
+        let vol = VolData {
+            res: [2, 1, 1],
+            channels: 1,
+            bbox: [[-1.0, 0.0, 0.0], [1.0, 1.0, 1.0]],
+            data: vec![1.0, 3.0],
+        };
+        GridVolume::new(vol, to_world, use_grid_bbox, trilinear, Wrap::Clamp).unwrap()
+    }
+
+    #[test]
+    fn trilinear_lookup_interpolates_between_texel_centres_and_clamps() {
+        let g = two_texels(Mat4::IDENTITY, false, true);
+        let at = |x: f32| g.eval(Vec3::new(x, 0.5, 0.5)).x;
+        assert_eq!(at(0.25), 1.0);
+        assert_eq!(at(0.75), 3.0);
+        assert_eq!(at(0.5), 2.0);
+        assert_eq!(at(0.375), 1.5);
+        assert_eq!(at(0.0), 1.0);
+        assert_eq!(at(-3.0), 1.0);
+        assert_eq!(at(7.0), 3.0);
+        assert_eq!(g.max, 3.0);
+        assert_eq!(g.bbox, [Vec3::ZERO, Vec3::ONE]);
+    }
+
+    #[test]
+    fn nearest_lookup_picks_the_cell() {
+        let g = two_texels(Mat4::IDENTITY, false, false);
+        assert_eq!(g.eval(Vec3::new(0.49, 0.5, 0.5)).x, 1.0);
+        assert_eq!(g.eval(Vec3::new(0.51, 0.5, 0.5)).x, 3.0);
+    }
+
+    #[test]
+    fn to_world_and_grid_bbox_place_the_grid() {
+        // to_world = scale 2 then translate (1, 0, 0): the unit cube becomes [1, 3] × [0, 2]².
+        let m = Mat4::from_translation(Vec3::X) * Mat4::from_scale(Vec3::splat(2.0));
+        let g = two_texels(m, false, true);
+        assert_eq!(g.bbox, [Vec3::new(1.0, 0.0, 0.0), Vec3::new(3.0, 2.0, 2.0)]);
+        assert_eq!(g.eval(Vec3::new(2.0, 1.0, 1.0)).x, 2.0);
+        assert_eq!(g.eval(Vec3::new(1.5, 1.0, 1.0)).x, 1.0);
+        // With the file's box [-1, 1] × [0, 1]²: world x = -0.5 is the first texel's centre.
+        let g = two_texels(Mat4::IDENTITY, true, true);
+        assert_eq!(g.bbox, [Vec3::new(-1.0, 0.0, 0.0), Vec3::ONE]);
+        assert_eq!(g.eval(Vec3::new(-0.5, 0.5, 0.5)).x, 1.0);
+        assert_eq!(g.eval(Vec3::new(0.0, 0.5, 0.5)).x, 2.0);
+    }
+
+    #[test]
+    fn three_channel_grids_keep_their_channels_and_bad_channel_counts_are_refused() {
+        let vol = VolData {
+            res: [1, 1, 1],
+            channels: 3,
+            bbox: [[0.0; 3], [1.0; 3]],
+            data: vec![0.1, 0.2, 0.7],
+        };
+        let g = GridVolume::new(vol, Mat4::IDENTITY, false, true, Wrap::Clamp).unwrap();
+        let v = g.eval(Vec3::splat(0.3));
+        assert!((v - Vec3::new(0.1, 0.2, 0.7)).abs().max_element() < 1e-6, "{v}");
+        assert_eq!(g.max, 0.7);
+        let vol = VolData {
+            res: [1, 1, 1],
+            channels: 2,
+            bbox: [[0.0; 3], [1.0; 3]],
+            data: vec![0.1, 0.2],
+        };
+        assert!(GridVolume::new(vol, Mat4::IDENTITY, false, true, Wrap::Clamp).is_err());
+    }
+}
