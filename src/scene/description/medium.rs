@@ -79,8 +79,10 @@ fn medium_desc(cx: &Ctx, o: &Object) -> Result<MediumDesc> {
     let mut sigma_t = None;
     let mut albedo = None;
     let mut phase = None;
+    // Mitsuba reads a plain `<rgb>` of a medium as a reflectance: components outside [0, 1]
+    // are refused (use `scale` for a larger extinction).
     for name in ["sigma_t", "albedo"] {
-        if let Some(c) = p.color(name, ColorRole::Unbounded)? {
+        if let Some(c) = p.color(name, ColorRole::Reflectance)? {
             let v = VolumeDesc::Constant {
                 value: c,
                 to_world: DMat4::IDENTITY,
