@@ -382,3 +382,52 @@ fn albedo_one_media_in_a_uniform_environment_are_invisible() {
     }
     z.finish(cases.len() * 3);
 }
+
+/// Bad media input is refused with one line naming the problem, never a panic.
+#[test]
+fn bad_media_input_gets_one_clear_error() {
+    let cases = [
+        (
+            r#"<medium type="fog" id="m"/>"#,
+            "unsupported plugin <medium type=\"fog\">",
+        ),
+        (
+            r#"<medium type="homogeneous" id="m"><phase type="hg"><float name="g" value="1"/></phase></medium>"#,
+            "g of <phase type=\"hg\"> must lie in the interval (-1, 1)",
+        ),
+        (
+            r#"<medium type="homogeneous" id="m"><rgb name="sigma_t" value="2, 1, 1"/></medium>"#,
+            "invalid RGB reflectance value",
+        ),
+        (
+            r#"<medium type="homogeneous" id="m"><float name="scale" value="-1"/></medium>"#,
+            "scale of <medium type=\"homogeneous\"> must be >= 0",
+        ),
+        (
+            r#"<medium type="heterogeneous" id="m"><volume name="sigma_t" type="gridvolume"><string name="filename" value="no-such.vol"/></volume></medium>"#,
+            "no-such.vol",
+        ),
+        (
+            r#"<medium type="heterogeneous" id="m"><volume name="sigma_t" type="gridvolume"><string name="filename" value="x.vol"/><string name="wrap_mode" value="wrap"/></volume></medium>"#,
+            "invalid wrap_mode 'wrap'",
+        ),
+        (
+            r#"<medium type="homogeneous" id="m"/><shape type="sphere"><ref id="m" name="inside"/></shape>"#,
+            "must be named \"interior\" or \"exterior\"",
+        ),
+        (
+            r#"<medium type="homogeneous" id="m"><phase type="rayleigh"/></medium>"#,
+            "unsupported plugin <phase type=\"rayleigh\">",
+        ),
+    ];
+    for (body, expected) in cases {
+        let xml = scene_xml("volpath", -1, "", body);
+        let e =
+            match penumbra::scene::Scene::from_xml_str(&xml, &repo_path("tests/inline.xml"), &[]) {
+                Ok(_) => panic!("{body}: accepted"),
+                Err(e) => e.to_string(),
+            };
+        assert!(e.contains(expected), "{body}: {e}");
+        assert!(!e.contains('\n'), "{body}: not one line: {e}");
+    }
+}
