@@ -266,32 +266,15 @@ fn instanced_analytic_shapes_hit_like_placed_ones() {
         let instanced = scene(&format!(
             r#"<shape type="shapegroup" id="g"><shape type="{shape}"/></shape><shape type="instance"><ref id="g"/>{t}</shape>"#
         ));
-        let mut hits = 0;
-        for i in 0..400 {
+        let rays = (0..400).map(|i| {
             let (u, v) = ((i % 20) as f32 / 10.0 - 1.0, (i / 20) as f32 / 10.0 - 1.0);
-            let r = ray([0.0, 0.0, 0.0], [u * 2.0 + 0.5, v * 2.0 + 0.2, -4.0]);
-            let (a, b) = (direct.intersect(&r), instanced.intersect(&r));
-            assert_eq!(a.is_some(), b.is_some(), "{shape}: ray {i}");
-            if let (Some(a), Some(b)) = (a, b) {
-                hits += 1;
-                assert!(
-                    (a.t - b.t).abs() <= 1e-5 * a.t,
-                    "{shape} ray {i}: {} vs {}",
-                    a.t,
-                    b.t
-                );
-                assert!(
-                    (a.ng - b.ng).length() < 1e-4,
-                    "{shape} ray {i}: {} vs {}",
-                    a.ng,
-                    b.ng
-                );
-                assert!(
-                    (a.p - b.p).length() <= 1e-5 * a.p.length(),
-                    "{shape} ray {i}"
-                );
-            }
-        }
+            ray([0.0, 0.0, 0.0], [u * 2.0 + 0.5, v * 2.0 + 0.2, -4.0])
+        });
+        let checks = HitChecks {
+            ng_tolerance: 1e-4,
+            surface_details: false,
+        };
+        let hits = compare_instanced_hits(&direct, &instanced, rays, &checks, shape);
         assert!(hits > 40, "{shape}: {hits} hits");
     }
 }

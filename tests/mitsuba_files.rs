@@ -6,7 +6,7 @@
 
 mod common;
 
-use common::repo_path;
+use common::{compare_instanced_hits, repo_path, HitChecks};
 use glam::{DVec3, Vec3};
 use penumbra::geometry::Ray;
 use penumbra::scene::description::{BsdfDesc, EmitterDesc, IntegratorDesc};
@@ -116,45 +116,20 @@ fn instances_hit_like_the_shapes_they_place() {
         &[],
     )
     .unwrap();
-    let mut hits = 0;
-    for i in 0..400 {
+    let rays = (0..400).map(|i| {
         let u = (i % 20) as f32 / 20.0 - 0.5;
         let v = (i / 20) as f32 / 20.0 - 0.5;
-        let ray = Ray::new(
+        Ray::new(
             Vec3::ZERO,
             Vec3::new(u * 1.5 + 0.5, 4.0, v * 1.5 + 0.2),
             f32::INFINITY,
-        );
-        let a = direct.intersect(&ray);
-        let b = instanced.intersect(&ray);
-        assert_eq!(a.is_some(), b.is_some(), "ray {i}");
-        if let (Some(a), Some(b)) = (a, b) {
-            hits += 1;
-            assert!(
-                (a.t - b.t).abs() <= 1e-5 * a.t,
-                "ray {i}: {} vs {}",
-                a.t,
-                b.t
-            );
-            assert!(
-                (a.ng - b.ng).length() < 1e-5,
-                "ray {i}: {} vs {}",
-                a.ng,
-                b.ng
-            );
-            assert!((a.uv - b.uv).length() < 1e-4, "ray {i}");
-            assert!((a.frame.s - b.frame.s).length() < 1e-4, "ray {i}");
-            assert!((a.p - b.p).length() <= 1e-5 * a.p.length());
-            // The error bound covers the difference between the two computations.
-            let d = (a.p - b.p).abs();
-            assert!(
-                d.cmple(a.p_error + b.p_error).all(),
-                "ray {i}: {d} vs {} + {}",
-                a.p_error,
-                b.p_error
-            );
-        }
-    }
+        )
+    });
+    let checks = HitChecks {
+        ng_tolerance: 1e-5,
+        surface_details: true,
+    };
+    let hits = compare_instanced_hits(&direct, &instanced, rays, &checks, "cube");
     assert!(hits > 150, "{hits}");
 }
 

@@ -24,7 +24,10 @@ fn mitsuba_regression_suite() {
     let scenes = suite::discover(&root).expect("the suite is in the repository");
     assert_eq!(scenes.len(), 41, "Mitsuba's suite has 41 scenes");
     let supported = scenes.iter().filter(|s| expected_to_pass(&s.name)).count();
-    assert_eq!(supported, 40, "all but the particle tracer's scene must pass");
+    assert_eq!(
+        supported, 40,
+        "all but the particle tracer's scene must pass"
+    );
     let media = scenes
         .iter()
         .filter(|s| s.name.starts_with("participating_media/"))

@@ -72,3 +72,63 @@ pub fn bsdf_from_xml(bsdf: &str) -> penumbra::material::ShadingBsdf {
     };
     penumbra::material::Material::shading_bsdf(&scene.materials, scene.shapes[0].material, &ctx)
 }
+
+/// What [`compare_instanced_hits`] checks beyond hit or miss, t, p and the geometric normal.
+pub struct HitChecks {
+    /// Largest |ng_direct − ng_instanced|.
+    pub ng_tolerance: f32,
+    /// Also compare uv, the shading tangent, and the two points against their error bounds.
+    pub surface_details: bool,
+}
+
+/// Traces each of `rays` in a scene with a shape placed directly and in one with the shape
+/// instanced by the same transform: both must hit or both miss, at the same t and p (1e-5
+/// relative) with the same geometric normal, and with `surface_details` the same uv and
+/// shading tangent (1e-4) and points within each other's error bounds. Returns the number of
+/// hits; `what` names the case in messages.
+pub fn compare_instanced_hits(
+    direct: &Scene,
+    instanced: &Scene,
+    rays: impl IntoIterator<Item = penumbra::geometry::Ray>,
+    checks: &HitChecks,
+    what: &str,
+) -> usize {
+    let mut hits = 0;
+    for (i, r) in rays.into_iter().enumerate() {
+        let (a, b) = (direct.intersect(&r), instanced.intersect(&r));
+        assert_eq!(a.is_some(), b.is_some(), "{what}: ray {i}");
+        let (Some(a), Some(b)) = (a, b) else {
+            continue;
+        };
+        hits += 1;
+        assert!(
+            (a.t - b.t).abs() <= 1e-5 * a.t,
+            "{what} ray {i}: {} vs {}",
+            a.t,
+            b.t
+        );
+        assert!(
+            (a.ng - b.ng).length() < checks.ng_tolerance,
+            "{what} ray {i}: {} vs {}",
+            a.ng,
+            b.ng
+        );
+        assert!(
+            (a.p - b.p).length() <= 1e-5 * a.p.length(),
+            "{what} ray {i}"
+        );
+        if checks.surface_details {
+            assert!((a.uv - b.uv).length() < 1e-4, "{what} ray {i}");
+            assert!((a.frame.s - b.frame.s).length() < 1e-4, "{what} ray {i}");
+            // The error bound covers the difference between the two computations.
+            let d = (a.p - b.p).abs();
+            assert!(
+                d.cmple(a.p_error + b.p_error).all(),
+                "{what} ray {i}: {d} vs {} + {}",
+                a.p_error,
+                b.p_error
+            );
+        }
+    }
+    hits
+}
