@@ -70,7 +70,8 @@ impl ZTests {
                 "{what} ch{c}: {:.5} ± {:.5}, expected {:.5} (z = {z:+.2})",
                 mean[c], se[c], expected[c]
             );
-            if !(z.abs() <= self.z) || !(se[c] < 0.05 * expected[c].max(0.05)) {
+            let ok = z.abs() <= self.z && se[c] < 0.05 * expected[c].max(0.05);
+            if !ok {
                 self.failures.push(format!(
                     "{what} channel {c}: {:.5} ± {:.5}, expected {:.5} (|z| = {:.2} > {:.2} or se too large)",
                     mean[c],
