@@ -197,7 +197,10 @@ mod tests {
         };
         let g = GridVolume::new(vol, Mat4::IDENTITY, false, true, Wrap::Clamp).unwrap();
         let v = g.eval(Vec3::splat(0.3));
-        assert!((v - Vec3::new(0.1, 0.2, 0.7)).abs().max_element() < 1e-6, "{v}");
+        assert!(
+            (v - Vec3::new(0.1, 0.2, 0.7)).abs().max_element() < 1e-6,
+            "{v}"
+        );
         assert_eq!(g.max, 0.7);
         let vol = VolData {
             res: [1, 1, 1],
