@@ -1,7 +1,8 @@
 //! No heap allocation per ray, bounce or sample (issue 8): with a counting global allocator,
 //! rendering a scene at 1 and at 64 samples per pixel allocates as often — every allocation
 //! is per render or per tile, none per sample. Checked on every example scene, so every BSDF,
-//! material, emitter, filter and camera on the hot path is covered.
+//! material, emitter, filter and camera on the hot path is covered, and on three of Mitsuba's
+//! participating-media scenes (grid media, volpath and volpathmis).
 //!
 //! The counts may differ by [`THREAD_SLACK`]: the worker thread's exit hands its garbage to
 //! crossbeam-epoch (rayon's deque), which allocates one or two bags depending on what the
@@ -68,6 +69,17 @@ fn rendering_allocates_nothing_per_sample() {
         .collect();
     scenes.sort();
     assert!(scenes.len() >= 13, "{scenes:?}");
+    // Media: grid-based, with both volumetric integrators.
+    for name in [
+        "test_hetero_sigmat_albedo_volpath.xml",
+        "test_hetero_spectral_sigmat_volpathmis.xml",
+        "test_homo_area_light_volpath.xml",
+    ] {
+        scenes.push(
+            common::repo_path("validation/mitsuba-suite/tests/scenes/participating_media")
+                .join(name),
+        );
+    }
     for path in scenes {
         let rel = path.strip_prefix(common::repo_path("")).expect("in repo");
         let scene = common::load(rel.to_str().expect("utf-8"), &[("res", "16")]);
