@@ -170,9 +170,15 @@ fn negative_controls(
     };
     // max_depth − 1
     let mut scene = entry.load_scene(root).expect("scene");
-    if let Integrator::Path(p) = &mut scene.integrator {
-        if p.max_depth != u32::MAX && p.max_depth > 0 {
-            p.max_depth -= 1;
+    let max_depth = match &mut scene.integrator {
+        Integrator::Path(p) => Some(&mut p.max_depth),
+        Integrator::VolPath(p) => Some(&mut p.max_depth),
+        Integrator::VolPathMis(p) => Some(&mut p.max_depth),
+        Integrator::Direct(_) => None,
+    };
+    if let Some(max_depth) = max_depth {
+        if *max_depth != u32::MAX && *max_depth > 0 {
+            *max_depth -= 1;
             let out = common::render_scene(&scene, spp, SEED, None);
             let (rgb1, var1) = (out.film.image(), out.film.sample_variance());
             let m1 = mean_check(&rgb1, &var1, spp as f64, &r.reference);
