@@ -97,6 +97,14 @@ pub(crate) fn trace_shadow<W: ShadowWeights>(
     if !ray.d.is_finite() {
         return;
     }
+    if !scene.shadow_passthrough {
+        // No media and nothing to see through: any surface blocks the light.
+        stats.rays += 1;
+        if scene.occluded(&ray) {
+            w.surface(Vec3::ZERO, channel);
+        }
+        return;
+    }
     let max_dist = ray.tmax;
     if let Vertex::Surface(si) = from {
         if scene.is_medium_transition(si) {

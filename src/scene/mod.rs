@@ -49,6 +49,10 @@ pub struct Scene {
     pub media: Vec<crate::medium::Medium>,
     /// The medium the sensor sits in (camera rays start in it).
     pub camera_medium: Option<u32>,
+    /// Whether a shadow ray of the volumetric integrators can get past a surface or be
+    /// attenuated on its way: the scene has media or a material with a null lobe (`null`,
+    /// `mask`, `thindielectric`). Without, their shadow rays are plain occlusion tests.
+    pub shadow_passthrough: bool,
 }
 
 impl Scene {

@@ -210,7 +210,20 @@ pub fn build(desc: &SceneDescription) -> Result<Scene> {
     };
     let (sampler, rounded) = Sampler::new(s.sampler.kind, s.sampler.sample_count);
     warnings.extend(rounded);
+    let shadow_passthrough = !media.is_empty()
+        || materials.materials.iter().any(|m| {
+            matches!(
+                m,
+                crate::material::Material::Null
+                    | crate::material::Material::Mask { .. }
+                    | crate::material::Material::Leaf {
+                        template: crate::bsdf::Bsdf::ThinDielectric(_),
+                        ..
+                    }
+            )
+        });
     Ok(Scene {
+        shadow_passthrough,
         shapes,
         materials: materials.materials,
         emitters,
