@@ -27,6 +27,9 @@ struct Cli {
 enum Command {
     /// Render a Mitsuba 3 XML scene to an OpenEXR image.
     Render(RenderArgs),
+    /// Merge the part files of a render split with `render --part i/N` into its image,
+    /// bit-identical to the render made in one process.
+    Merge(MergeArgs),
     /// Compare image A with the reference B: error metrics, z-test, false-colour diff.
     Compare(CompareArgs),
     /// Render a ladder of sample counts against a reference: error vs. spp and time, slope,
@@ -149,6 +152,55 @@ struct RenderArgs {
     /// No progress bar and no summary line.
     #[arg(short, long)]
     quiet: bool,
+    /// Render only part I of N of the samples (whole passes, contiguous) and write its sums
+    /// to the output as a part file for `penumbra merge` (e.g. one Slurm array task each).
+    #[arg(long, value_name = "I/N", value_parser = parse_part,
+          conflicts_with_all = ["resume", "checkpoint", "checkpoint_every", "time_limit",
+                                "target_rel_error", "variance", "preview"])]
+    part: Option<(u32, u32)>,
+    /// With --part: the parts extend a render of this many spp (a multiple of the pass size)
+    /// up to --spp, to be merged with that render's parts.
+    #[arg(long, value_name = "SPP", requires = "part", default_value_t = 0)]
+    start_spp: u64,
+}
+
+#[derive(clap::Args)]
+struct MergeArgs {
+    /// Part files written by `penumbra render --part I/N`, in any order.
+    #[arg(required = true)]
+    parts: Vec<PathBuf>,
+    /// Output image (OpenEXR, 32-bit float linear RGB).
+    #[arg(short, long, default_value = "out.exr")]
+    output: PathBuf,
+    /// Merge only the samples up to this spp (a rung of a convergence ladder): parts beyond
+    /// it are left out. Default: everything the parts hold.
+    #[arg(long)]
+    spp: Option<u64>,
+    /// Add per-pixel per-sample variance channels (variance.R/G/B) to the EXR.
+    #[arg(long)]
+    variance: bool,
+    /// Also write a tone-mapped sRGB PNG preview.
+    #[arg(long, value_name = "PNG")]
+    preview: Option<PathBuf>,
+    /// Write render statistics (summed over the parts) as JSON.
+    #[arg(long, value_name = "JSON")]
+    stats: Option<PathBuf>,
+    /// No summary line.
+    #[arg(short, long)]
+    quiet: bool,
+}
+
+fn parse_part(s: &str) -> std::result::Result<(u32, u32), String> {
+    let bad = || format!("'{s}' is not a part: give I/N with 0 <= I < N (e.g. 0/4)");
+    let (i, n) = s.split_once('/').ok_or_else(bad)?;
+    let (i, n) = (
+        i.trim().parse::<u32>().map_err(|_| bad())?,
+        n.trim().parse::<u32>().map_err(|_| bad())?,
+    );
+    if n == 0 || i >= n {
+        return Err(bad());
+    }
+    Ok((i, n))
 }
 
 fn parse_duration(s: &str) -> std::result::Result<Duration, String> {
@@ -220,10 +272,7 @@ fn run_render(args: RenderArgs) -> Result<()> {
             every: args.checkpoint_every.unwrap_or(Duration::from_secs(300)),
         });
     let resume = if args.resume {
-        Some(progressive::Checkpoint::read(
-            &checkpoint_path,
-            scene.filter,
-        )?)
+        Some(progressive::Checkpoint::read(&checkpoint_path)?)
     } else {
         None
     };
@@ -260,6 +309,28 @@ fn run_render(args: RenderArgs) -> Result<()> {
         checkpoint: checkpointing,
         scene_hash,
     };
+    if let Some((index, count)) = args.part {
+        let plan = progressive::PartPlan {
+            index,
+            count,
+            plan_spp: spp as u64,
+            start_spp: args.start_spp,
+        };
+        let part = progressive::render_part(&scene, &plan, seed, args.threads, scene_hash)?;
+        part.write(&args.output)?;
+        if !args.quiet {
+            let secs = part.stats.seconds.max(1e-9);
+            eprintln!(
+                "part {index}/{count} of {spp} spp: samples {}..{} of every pixel, {:.2} s, {:.2} Mpath/s -> {}",
+                part.first_sample,
+                part.first_sample + part.samples,
+                part.stats.seconds,
+                part.stats.paths as f64 / secs / 1e6,
+                args.output.display()
+            );
+        }
+        return Ok(());
+    }
     let pixels = (scene.width * scene.height) as u64;
     let bar = if args.quiet || !std::io::stderr().is_terminal() {
         ProgressBar::hidden()
@@ -278,28 +349,60 @@ fn run_render(args: RenderArgs) -> Result<()> {
         bar.set_position(p.samples * pixels)
     })?;
     bar.finish_and_clear();
-    let stats = progress.stats;
-    let spp_done = progress.samples;
+    let reason_text = match reason {
+        progressive::StopReason::SppReached => "spp reached",
+        progressive::StopReason::TimeLimit => "time limit",
+        progressive::StopReason::TargetError => "target error reached",
+    };
+    write_image(&ImageOutput {
+        output: &args.output,
+        film: &progress.film,
+        spp: progress.samples,
+        seed,
+        stats: progress.stats,
+        reason: reason_text,
+        variance: args.variance,
+        preview: args.preview.as_deref(),
+        stats_json_path: args.stats.as_deref(),
+        quiet: args.quiet,
+    })
+}
+
+/// What [`write_image`] writes: a render's film as EXR (+ variance), preview and statistics.
+struct ImageOutput<'a> {
+    output: &'a std::path::Path,
+    film: &'a penumbra::film::Film,
+    spp: u64,
+    seed: u64,
+    stats: penumbra::render::RenderStats,
+    reason: &'a str,
+    variance: bool,
+    preview: Option<&'a std::path::Path>,
+    stats_json_path: Option<&'a std::path::Path>,
+    quiet: bool,
+}
+
+fn write_image(o: &ImageOutput) -> Result<()> {
+    let (width, height) = (o.film.width, o.film.height);
+    let stats = o.stats;
+    let spp_done = o.spp;
+    let seed = o.seed;
+    let reason_text = o.reason;
     let image = RgbImage {
-        width: scene.width,
-        height: scene.height,
-        rgb: progress.film.image(),
-        variance: args.variance.then(|| progress.film.sample_variance()),
+        width,
+        height,
+        rgb: o.film.image(),
+        variance: o.variance.then(|| o.film.sample_variance()),
         attributes: BTreeMap::new(),
     };
     let secs = stats.seconds.max(1e-9);
     let rays_per_s = stats.path.rays as f64 / secs;
     let mean_len = stats.path.bounces as f64 / stats.paths.max(1) as f64;
     let rr_frac = stats.path.rr_terminated as f64 / stats.paths.max(1) as f64;
-    let reason_text = match reason {
-        progressive::StopReason::SppReached => "spp reached",
-        progressive::StopReason::TimeLimit => "time limit",
-        progressive::StopReason::TargetError => "target error reached",
-    };
     let spp_attr =
         i32::try_from(spp_done).map_or(Attribute::Float(spp_done as f64), Attribute::Int);
     exr::write(
-        &args.output,
+        o.output,
         &image,
         &[
             ("spp", spp_attr),
@@ -323,13 +426,13 @@ fn run_render(args: RenderArgs) -> Result<()> {
             ("stop_reason", Attribute::Text(reason_text.into())),
         ],
     )?;
-    if let Some(png) = &args.preview {
-        penumbra::io::png::write_preview(png, scene.width, scene.height, &image.rgb, 1.0)?;
+    if let Some(png) = o.preview {
+        penumbra::io::png::write_preview(png, width, height, &image.rgb, 1.0)?;
     }
-    if let Some(path) = &args.stats {
+    if let Some(path) = o.stats_json_path {
         let json = stats_json(&[
-            ("width", scene.width.to_string()),
-            ("height", scene.height.to_string()),
+            ("width", width.to_string()),
+            ("height", height.to_string()),
             ("spp", spp_done.to_string()),
             ("seed", seed.to_string()),
             ("stop_reason", format!("\"{reason_text}\"")),
@@ -348,12 +451,12 @@ fn run_render(args: RenderArgs) -> Result<()> {
         ]);
         std::fs::write(path, json).with_context(|| format!("cannot write {}", path.display()))?;
     }
-    if !args.quiet {
+    if !o.quiet {
         eprintln!(
             "{}x{}, {} spp, {:.2} s, {:.2} Mpath/s, {:.2} Mray/s, mean path length {:.2}, RR ended {:.1}%, \
              {} non-finite samples dropped, stopped: {} -> {}",
-            scene.width,
-            scene.height,
+            width,
+            height,
             spp_done,
             stats.seconds,
             stats.paths as f64 / secs / 1e6,
@@ -362,10 +465,30 @@ fn run_render(args: RenderArgs) -> Result<()> {
             100.0 * rr_frac,
             stats.nonfinite,
             reason_text,
-            args.output.display()
+            o.output.display()
         );
     }
     Ok(())
+}
+
+fn run_merge(args: MergeArgs) -> Result<()> {
+    let mut parts = Vec::with_capacity(args.parts.len());
+    for p in &args.parts {
+        parts.push((p.clone(), progressive::Checkpoint::read(p)?));
+    }
+    let merged = progressive::merge_parts(parts, args.spp)?;
+    write_image(&ImageOutput {
+        output: &args.output,
+        film: &merged.film(),
+        spp: merged.samples,
+        seed: merged.seed,
+        stats: merged.stats,
+        reason: "merged parts",
+        variance: args.variance,
+        preview: args.preview.as_deref(),
+        stats_json_path: args.stats.as_deref(),
+        quiet: args.quiet,
+    })
 }
 
 fn run_compare(args: CompareArgs) -> Result<()> {
@@ -665,6 +788,7 @@ fn main() {
     let cli = Cli::parse();
     let result = match cli.command {
         Command::Render(args) => run_render(args),
+        Command::Merge(args) => run_merge(args),
         Command::Compare(args) => run_compare(args),
         Command::Converge(args) => run_converge(args),
     };

@@ -1,11 +1,17 @@
 //! Long renders: samples are drawn in passes of a fixed size, each continuing the previous
 //! one's sample indices, so that a render can stop on a time limit or a target error, write
-//! checkpoints of its running sums, and be resumed. The pass schedule depends only on the
-//! image size and the target spp, and films are summed pass by pass in the same order, so a
-//! render resumed from a checkpoint is bit-identical to an uninterrupted one.
+//! checkpoints of its running sums, and be resumed, or be split into parts rendered
+//! anywhere (`--part i/N`, e.g. a Slurm job array) and merged.
+//!
+//! The pass schedule depends only on the image size: pass k holds the samples
+//! [k·p, (k+1)·p) of every pixel, p = [`pass_spp`]. Each pass film is summed in a fixed order
+//! (tiles, then pixels), and passes are added exactly ([`ExactFilm`]: integer sums, so the
+//! grouping of passes does not matter). Hence a render resumed from a checkpoint, and the
+//! merge of any split into parts along pass boundaries, are bit-identical to the same render
+//! made in one go.
 
 use crate::error::{Error, Result};
-use crate::film::Film;
+use crate::film::{ExactFilm, Film, Filter, EXACT_VALUES};
 use crate::render::{render, RenderSettings, RenderStats};
 use crate::scene::Scene;
 use std::io::{Read, Write};
@@ -58,7 +64,10 @@ pub enum StopReason {
 /// The running state of a render: sums and counters.
 #[derive(Clone, Debug)]
 pub struct Progress {
+    /// The sums so far (as f64, from `exact`).
     pub film: Film,
+    /// The exact sums the passes are added to.
+    pub exact: ExactFilm,
     /// Samples per pixel drawn so far.
     pub samples: u64,
     pub stats: RenderStats,
@@ -122,13 +131,15 @@ pub fn render_progressive(
         Some(c) => {
             c.check_matches(scene, settings, pass)?;
             Progress {
-                film: c.film,
+                film: c.exact.to_film(scene.filter),
+                exact: c.exact,
                 samples: c.samples,
                 stats: c.stats,
             }
         }
         None => Progress {
             film: Film::new(scene.width, scene.height, scene.filter),
+            exact: ExactFilm::new(scene.width, scene.height),
             samples: 0,
             stats: RenderStats::default(),
         },
@@ -163,7 +174,8 @@ pub fn render_progressive(
             },
             &|_, _| {},
         )?;
-        progress.film.add(&out.film);
+        progress.exact.add(&out.film).map_err(Error::Invalid)?;
+        progress.film = progress.exact.to_film(scene.filter);
         progress.samples += spp as u64;
         progress.stats.paths += out.stats.paths;
         progress.stats.path += out.stats.path;
@@ -214,12 +226,21 @@ pub struct Checkpoint {
     /// The sampler's points per pass ([`crate::sampler::Sampler::sample_count`]): a resumed
     /// render continues with the same passes.
     pub sampler_points: u32,
+    /// The samples per pixel this file holds: [first_sample, first_sample + samples).
+    pub first_sample: u64,
     pub samples: u64,
+    /// The render's target spp (a part's plan; a checkpoint's `--spp`).
+    pub plan_spp: u64,
+    /// Where the part's plan starts (`--start-spp`; 0 for a checkpoint).
+    pub plan_start: u64,
+    /// For a part file: (i, N) of `--part i/N`; None for a checkpoint.
+    pub part: Option<(u32, u32)>,
     pub stats: RenderStats,
-    pub film: Film,
+    pub filter: Filter,
+    pub exact: ExactFilm,
 }
 
-const MAGIC: &[u8; 8] = b"PNBRCKP2";
+const MAGIC: &[u8; 8] = b"PNBRCKP3";
 
 impl Checkpoint {
     fn from_progress(p: &Progress, s: &ProgressiveSettings, pass_spp: u32, scene: &Scene) -> Self {
@@ -229,9 +250,14 @@ impl Checkpoint {
             seed: s.seed,
             pass_spp,
             sampler_points: scene.sampler.sample_count,
+            first_sample: 0,
             samples: p.samples,
+            plan_spp: s.spp as u64,
+            plan_start: 0,
+            part: None,
             stats: p.stats,
-            film: p.film.clone(),
+            filter: scene.filter,
+            exact: p.exact.clone(),
         }
     }
 
@@ -241,6 +267,9 @@ impl Checkpoint {
                 "cannot resume: the checkpoint was made {what}"
             )))
         };
+        if self.part.is_some() || self.first_sample != 0 {
+            return refuse("by `render --part`: merge parts with `penumbra merge`".into());
+        }
         if self.version != crate::VERSION {
             return refuse(format!(
                 "by penumbra {} (this is {})",
@@ -257,8 +286,9 @@ impl Checkpoint {
                 self.seed, s.seed
             ));
         }
-        if (self.film.width, self.film.height) != (scene.width, scene.height)
+        if (self.exact.width, self.exact.height) != (scene.width, scene.height)
             || self.pass_spp != pass_spp
+            || self.filter != scene.filter
         {
             return refuse("for another resolution".into());
         }
@@ -278,22 +308,40 @@ impl Checkpoint {
             path: path.to_path_buf(),
             cause: e,
         };
-        let mut buf = Vec::with_capacity(64 + self.film.sum.len() * 56);
+        let mut buf = Vec::with_capacity(128 + self.exact.values.len() * 16 * EXACT_VALUES);
         buf.extend_from_slice(MAGIC);
         let v = self.version.as_bytes();
         buf.extend_from_slice(&(v.len() as u32).to_le_bytes());
         buf.extend_from_slice(v);
+        let (part_i, part_n) = self.part.unwrap_or((0, 0));
+        let (filter_kind, filter_param) = match self.filter {
+            Filter::Box => (0u32, 0.0f64),
+            Filter::Tent { radius } => (1, radius),
+            Filter::Gaussian { stddev } => (2, stddev),
+        };
         for x in [
             self.scene_hash,
             self.seed,
+            self.first_sample,
             self.samples,
-            self.film.width as u64,
-            self.film.height as u64,
+            self.plan_spp,
+            self.plan_start,
+            self.exact.width as u64,
+            self.exact.height as u64,
+            self.exact.samples,
         ] {
             buf.extend_from_slice(&x.to_le_bytes());
         }
-        buf.extend_from_slice(&self.pass_spp.to_le_bytes());
-        buf.extend_from_slice(&self.sampler_points.to_le_bytes());
+        for x in [
+            self.pass_spp,
+            self.sampler_points,
+            part_i,
+            part_n,
+            filter_kind,
+        ] {
+            buf.extend_from_slice(&x.to_le_bytes());
+        }
+        buf.extend_from_slice(&filter_param.to_le_bytes());
         let st = &self.stats;
         for x in [
             st.paths,
@@ -305,12 +353,10 @@ impl Checkpoint {
             buf.extend_from_slice(&x.to_le_bytes());
         }
         buf.extend_from_slice(&st.seconds.to_le_bytes());
-        for i in 0..self.film.sum.len() {
-            for c in 0..3 {
-                buf.extend_from_slice(&self.film.sum[i][c].to_le_bytes());
-                buf.extend_from_slice(&self.film.sum_sq[i][c].to_le_bytes());
+        for px in &self.exact.values {
+            for v in px {
+                buf.extend_from_slice(&v.to_le_bytes());
             }
-            buf.extend_from_slice(&self.film.weight[i].to_le_bytes());
         }
         let checksum = fnv1a(&buf, 0xcbf2_9ce4_8422_2325);
         buf.extend_from_slice(&checksum.to_le_bytes());
@@ -326,11 +372,11 @@ impl Checkpoint {
         std::fs::rename(&tmp, path).map_err(err)
     }
 
-    /// Reads a checkpoint written by [`Checkpoint::write`] for a film of the given filter.
-    pub fn read(path: &Path, filter: crate::film::Filter) -> Result<Self> {
+    /// Reads a checkpoint or part file written by [`Checkpoint::write`].
+    pub fn read(path: &Path) -> Result<Self> {
         let bad = |m: &str| {
             Error::Invalid(format!(
-                "{}: not a valid penumbra checkpoint ({m})",
+                "{}: not a valid penumbra checkpoint or part file ({m})",
                 path.display()
             ))
         };
@@ -341,6 +387,9 @@ impl Checkpoint {
                 path: path.to_path_buf(),
                 cause,
             })?;
+        if bytes.len() >= 8 && &bytes[..7] == b"PNBRCKP" && bytes[..8] != MAGIC[..] {
+            return Err(bad("written by an older penumbra"));
+        }
         if bytes.len() < 16 || &bytes[..8] != MAGIC {
             return Err(bad("wrong magic"));
         }
@@ -353,26 +402,43 @@ impl Checkpoint {
         let version = String::from_utf8(r.take(vlen).ok_or_else(|| bad("truncated"))?.to_vec())
             .map_err(|_| bad("bad version"))?;
         let mut u = || r.u64().ok_or_else(|| bad("truncated"));
-        let (scene_hash, seed, samples, width, height) = (u()?, u()?, u()?, u()?, u()?);
+        let (scene_hash, seed, first_sample, samples, plan_spp) = (u()?, u()?, u()?, u()?, u()?);
+        let plan_start = u()?;
+        let (width, height, film_samples) = (u()?, u()?, u()?);
         let pixels = width
             .checked_mul(height)
             .filter(|&n| n <= crate::scene::description::MAX_PIXELS);
         let pixels = pixels.ok_or_else(|| bad("resolution"))? as usize;
-        let pass_spp = r.u32().ok_or_else(|| bad("truncated"))?;
-        let sampler_points = r.u32().ok_or_else(|| bad("truncated"))?;
+        let mut u = || r.u32().ok_or_else(|| bad("truncated"));
+        let (pass_spp, sampler_points, part_i, part_n, filter_kind) =
+            (u()?, u()?, u()?, u()?, u()?);
+        let filter_param = r.f64().ok_or_else(|| bad("truncated"))?;
+        let filter = match filter_kind {
+            0 => Filter::Box,
+            1 => Filter::Tent {
+                radius: filter_param,
+            },
+            2 => Filter::Gaussian {
+                stddev: filter_param,
+            },
+            _ => return Err(bad("unknown filter")),
+        };
         let mut u = || r.u64().ok_or_else(|| bad("truncated"));
         let (paths, rays, bounces, rr, nonfinite) = (u()?, u()?, u()?, u()?, u()?);
         let seconds = r.f64().ok_or_else(|| bad("truncated"))?;
-        if r.b.len() - r.pos != pixels * 7 * 8 {
+        if r.b.len() - r.pos != pixels * EXACT_VALUES * 16 {
             return Err(bad("size does not match the resolution"));
         }
-        let mut film = Film::new(width as usize, height as usize, filter);
-        for i in 0..pixels {
-            for c in 0..3 {
-                film.sum[i][c] = r.f64().ok_or_else(|| bad("truncated"))?;
-                film.sum_sq[i][c] = r.f64().ok_or_else(|| bad("truncated"))?;
+        let mut exact = ExactFilm::new(width as usize, height as usize);
+        exact.samples = film_samples;
+        for px in exact.values.iter_mut() {
+            for v in px.iter_mut() {
+                *v = r.i128().ok_or_else(|| bad("truncated"))?;
             }
-            film.weight[i] = r.f64().ok_or_else(|| bad("truncated"))?;
+        }
+        let part = (part_n > 0).then_some((part_i, part_n));
+        if part.is_some_and(|(i, n)| i >= n) {
+            return Err(bad("part index out of range"));
         }
         Ok(Checkpoint {
             version,
@@ -380,7 +446,11 @@ impl Checkpoint {
             seed,
             pass_spp,
             sampler_points,
+            first_sample,
             samples,
+            plan_spp,
+            plan_start,
+            part,
             stats: RenderStats {
                 paths,
                 path: crate::integrator::PathStats {
@@ -391,8 +461,275 @@ impl Checkpoint {
                 nonfinite,
                 seconds,
             },
-            film,
+            filter,
+            exact,
         })
+    }
+
+    /// The f64 film of the sums.
+    pub fn film(&self) -> Film {
+        self.exact.to_film(self.filter)
+    }
+}
+
+/// What `render --part i/N` renders: part `index` of `count` of the samples
+/// [`start_spp`, `plan_spp`) of every pixel.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct PartPlan {
+    pub index: u32,
+    pub count: u32,
+    /// Target spp of the render the parts make up.
+    pub plan_spp: u64,
+    /// Samples before this plan (a plan that extends an earlier render); a multiple of the
+    /// pass size.
+    pub start_spp: u64,
+}
+
+/// The sample range [a, b) of each pixel that part `index` of `count` holds: the passes of
+/// [start, plan) split into `count` contiguous runs of whole passes, as evenly as possible.
+pub fn part_range(plan: &PartPlan, pass: u32) -> Result<(u64, u64)> {
+    let p = pass as u64;
+    if plan.count == 0 || plan.index >= plan.count {
+        return Err(Error::Invalid(format!(
+            "--part {}/{}: the index must be below the part count",
+            plan.index, plan.count
+        )));
+    }
+    if !plan.start_spp.is_multiple_of(p) || plan.start_spp >= plan.plan_spp {
+        return Err(Error::Invalid(format!(
+            "--start-spp {} must be a multiple of the pass size ({p} spp for this image) and below --spp {}",
+            plan.start_spp, plan.plan_spp
+        )));
+    }
+    let passes = (plan.plan_spp - plan.start_spp).div_ceil(p);
+    if plan.count as u64 > passes {
+        return Err(Error::Invalid(format!(
+            "--part {}/{}: the render has only {passes} passes of {p} spp, so at most {passes} parts",
+            plan.index, plan.count
+        )));
+    }
+    let at = |k: u64| (plan.start_spp + k * p).min(plan.plan_spp);
+    let (i, n) = (plan.index as u64, plan.count as u64);
+    Ok((at(i * passes / n), at((i + 1) * passes / n)))
+}
+
+/// Renders one part of a split render (see [`PartPlan`]): its passes, exactly as the
+/// one-process render draws them, summed exactly. The result is a part file's content.
+pub fn render_part(
+    scene: &Scene,
+    plan: &PartPlan,
+    seed: u64,
+    threads: Option<usize>,
+    scene_hash: u64,
+) -> Result<Checkpoint> {
+    let pass = pass_spp(scene.width, scene.height);
+    let (a, b) = part_range(plan, pass)?;
+    let mut exact = ExactFilm::new(scene.width, scene.height);
+    let mut stats = RenderStats::default();
+    let mut at = a;
+    while at < b {
+        let spp = (pass as u64).min(b - at) as u32;
+        let out = render(
+            scene,
+            &RenderSettings {
+                spp,
+                seed,
+                threads,
+                sampler: None,
+                first_sample: at,
+            },
+            &|_, _| {},
+        )?;
+        exact.add(&out.film).map_err(Error::Invalid)?;
+        stats.paths += out.stats.paths;
+        stats.path += out.stats.path;
+        stats.nonfinite += out.stats.nonfinite;
+        stats.seconds += out.stats.seconds;
+        at += spp as u64;
+    }
+    Ok(Checkpoint {
+        version: crate::VERSION.to_string(),
+        scene_hash,
+        seed,
+        pass_spp: pass,
+        sampler_points: scene.sampler.sample_count,
+        first_sample: a,
+        samples: b - a,
+        plan_spp: plan.plan_spp,
+        plan_start: plan.start_spp,
+        part: Some((plan.index, plan.count)),
+        stats,
+        filter: scene.filter,
+        exact,
+    })
+}
+
+/// Merges part files (any order) into the render they make up: the samples [0, S) of every
+/// pixel, S the largest spp plan among the parts (or `target_spp`, leaving out parts beyond
+/// it). Refuses,
+/// with one line naming the file(s), parts of another penumbra version, scene, seed,
+/// resolution, filter, pass size or sampler, duplicates and overlaps, parts that do not start
+/// or end on a pass boundary where another part continues, and gaps (naming the missing parts
+/// where their plan tells). The sums are added exactly, so the result is bit-identical to the
+/// one-process render of S spp.
+pub fn merge_parts(
+    mut parts: Vec<(PathBuf, Checkpoint)>,
+    target_spp: Option<u64>,
+) -> Result<Checkpoint> {
+    let name = |p: &Path| p.display().to_string();
+    parts.sort_by_key(|(_, c)| (c.first_sample, c.first_sample + c.samples));
+    let Some((first_path, first)) = parts.first() else {
+        return Err(Error::Invalid("merge: no part files given".into()));
+    };
+    for (path, c) in &parts {
+        let differs = |what: &str| {
+            Err(Error::Invalid(format!(
+                "{} was rendered {what} than {}",
+                name(path),
+                name(first_path)
+            )))
+        };
+        if c.part.is_none() {
+            return Err(Error::Invalid(format!(
+                "{} is a checkpoint, not a part file of `render --part`",
+                name(path)
+            )));
+        }
+        if c.version != first.version {
+            return differs(&format!(
+                "by another penumbra version ({} vs {})",
+                c.version, first.version
+            ));
+        }
+        if c.scene_hash != first.scene_hash {
+            return differs("from another scene (or other -D values or mesh files)");
+        }
+        if c.seed != first.seed {
+            return differs(&format!("with another seed ({} vs {})", c.seed, first.seed));
+        }
+        if (c.exact.width, c.exact.height) != (first.exact.width, first.exact.height)
+            || c.filter != first.filter
+        {
+            return differs("at another resolution or with another filter");
+        }
+        if c.pass_spp != first.pass_spp || c.sampler_points != first.sampler_points {
+            return differs("with another pass size or sampler (another spp plan)");
+        }
+    }
+    let pass = first.pass_spp as u64;
+    // The render the parts make up ends where their plans end (so that missing last parts
+    // are named), unless a smaller target is asked for.
+    let end =
+        target_spp.unwrap_or_else(|| parts.iter().map(|(_, c)| c.plan_spp).max().unwrap_or(0));
+    let label = |p: &Path, c: &Checkpoint| {
+        let (i, n) = c.part.unwrap_or((0, 0));
+        format!(
+            "{} (part {i}/{n} of {} spp: samples {}..{})",
+            name(p),
+            c.plan_spp,
+            c.first_sample,
+            c.first_sample + c.samples
+        )
+    };
+    let mut merged = ExactFilm::new(first.exact.width, first.exact.height);
+    let mut stats = RenderStats::default();
+    let mut covered = 0u64;
+    let mut prev: Option<(&PathBuf, &Checkpoint)> = None;
+    for (path, c) in &parts {
+        let (a, b) = (c.first_sample, c.first_sample + c.samples);
+        if a >= end {
+            continue;
+        }
+        if let Some((pp, pc)) = prev {
+            if (pc.first_sample, pc.samples) == (a, c.samples) {
+                return Err(Error::Invalid(format!(
+                    "duplicate parts: {} and {}",
+                    label(pp, pc),
+                    label(path, c)
+                )));
+            }
+        }
+        if a < covered {
+            let (pp, pc) = prev.expect("a previous part covers the overlap");
+            return Err(Error::Invalid(format!(
+                "overlapping parts: {} and {}",
+                label(pp, pc),
+                label(path, c)
+            )));
+        }
+        if a > covered {
+            return Err(missing(covered, a, &parts));
+        }
+        if b > end {
+            return Err(Error::Invalid(format!(
+                "--spp {end} falls inside {}: merge up to a part boundary",
+                label(path, c)
+            )));
+        }
+        if !a.is_multiple_of(pass) || (!b.is_multiple_of(pass) && b != end) {
+            return Err(Error::Invalid(format!(
+                "{} does not start and end on a pass boundary (passes of {pass} spp) where other parts continue it",
+                label(path, c)
+            )));
+        }
+        merged.add_exact(&c.exact).map_err(Error::Invalid)?;
+        stats.paths += c.stats.paths;
+        stats.path += c.stats.path;
+        stats.nonfinite += c.stats.nonfinite;
+        stats.seconds += c.stats.seconds;
+        covered = b;
+        prev = Some((path, c));
+    }
+    if covered < end {
+        return Err(missing(covered, end, &parts));
+    }
+    Ok(Checkpoint {
+        version: first.version.clone(),
+        scene_hash: first.scene_hash,
+        seed: first.seed,
+        pass_spp: first.pass_spp,
+        sampler_points: first.sampler_points,
+        first_sample: 0,
+        samples: end,
+        plan_spp: end,
+        plan_start: 0,
+        part: None,
+        stats,
+        filter: first.filter,
+        exact: merged,
+    })
+}
+
+/// The error for samples [a, b) that no part holds: the missing parts of the plans the given
+/// parts belong to, or the sample range.
+fn missing(a: u64, b: u64, parts: &[(PathBuf, Checkpoint)]) -> Error {
+    let mut names = Vec::new();
+    for (_, c) in parts {
+        let Some((_, n)) = c.part else { continue };
+        for i in 0..n {
+            let plan = PartPlan {
+                index: i,
+                count: n,
+                plan_spp: c.plan_spp,
+                start_spp: c.plan_start,
+            };
+            if let Ok((x, y)) = part_range(&plan, c.pass_spp) {
+                if x < b && y > a {
+                    let s = format!("{i}/{n} of {} spp (samples {x}..{y})", c.plan_spp);
+                    if !names.contains(&s) {
+                        names.push(s);
+                    }
+                }
+            }
+        }
+    }
+    if names.is_empty() {
+        Error::Invalid(format!("missing samples {a}..{b}: no part holds them"))
+    } else {
+        Error::Invalid(format!(
+            "missing samples {a}..{b}: parts {} are not among the files",
+            names.join(", ")
+        ))
     }
 }
 
@@ -415,5 +752,8 @@ impl Reader<'_> {
     }
     fn f64(&mut self) -> Option<f64> {
         Some(f64::from_le_bytes(self.take(8)?.try_into().ok()?))
+    }
+    fn i128(&mut self) -> Option<i128> {
+        Some(i128::from_le_bytes(self.take(16)?.try_into().ok()?))
     }
 }

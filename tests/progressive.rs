@@ -65,7 +65,7 @@ fn killed_and_resumed_render_is_bit_identical_to_an_uninterrupted_one() {
     let start = Instant::now();
     let mut killed_at = None;
     while start.elapsed() < Duration::from_secs(120) {
-        if let Ok(c) = Checkpoint::read(&ckpt, penumbra::film::Filter::Box) {
+        if let Ok(c) = Checkpoint::read(&ckpt) {
             if c.samples >= 2 * 1024 {
                 child.kill().unwrap();
                 killed_at = Some(c.samples);
@@ -81,8 +81,7 @@ fn killed_and_resumed_render_is_bit_identical_to_an_uninterrupted_one() {
     let killed_at = killed_at.expect("the render finished before it could be interrupted");
     assert!(!out.exists(), "no output from the killed run");
     // The checkpoint left behind is complete (checksum verified) and mid-way.
-    let c =
-        Checkpoint::read(&ckpt, penumbra::film::Filter::Box).expect("checkpoint intact after kill");
+    let c = Checkpoint::read(&ckpt).expect("checkpoint intact after kill");
     assert!(
         c.samples >= killed_at && c.samples < 8192,
         "{} samples",

@@ -1,0 +1,245 @@
+//! Split renders: `render --part i/N` renders whole passes of a render's samples, `merge`
+//! adds the parts' exact sums. The merge of any split, in any order, must be bit-identical to
+//! the render made in one process (same seed and spp), extending a render by more parts must
+//! equal rendering the larger spp at once, and bad sets of parts must be refused with one
+//! line naming what is wrong.
+
+mod common;
+
+use common::*;
+use penumbra::film::Film;
+use penumbra::progressive::{
+    merge_parts, pass_spp, render_part, render_progressive, scene_hash, Checkpoint, PartPlan,
+    ProgressiveSettings,
+};
+use penumbra::scene::Scene;
+use std::path::PathBuf;
+
+const SEED: u64 = 1234;
+
+fn load_with_hash(rel: &str, defines: &[(&str, &str)]) -> (Scene, u64) {
+    let defines: Vec<(String, String)> = defines
+        .iter()
+        .map(|(k, v)| (k.to_string(), v.to_string()))
+        .collect();
+    let desc = Scene::load_description(&repo_path(rel), &defines).expect("loads");
+    let hash = scene_hash(&desc);
+    (penumbra::scene::build::build(&desc).expect("builds"), hash)
+}
+
+fn one_process(scene: &Scene, hash: u64, spp: u32) -> Film {
+    let settings = ProgressiveSettings {
+        spp,
+        seed: SEED,
+        threads: None,
+        time_limit: None,
+        target_rel_error: None,
+        checkpoint: None,
+        scene_hash: hash,
+    };
+    render_progressive(scene, &settings, None, &|_| {})
+        .expect("renders")
+        .0
+        .film
+}
+
+fn part(scene: &Scene, hash: u64, i: u32, n: u32, spp: u64, start: u64) -> (PathBuf, Checkpoint) {
+    let plan = PartPlan {
+        index: i,
+        count: n,
+        plan_spp: spp,
+        start_spp: start,
+    };
+    let c = render_part(scene, &plan, SEED, None, hash).expect("part renders");
+    (PathBuf::from(format!("part-{start}-{spp}-{i}-of-{n}")), c)
+}
+
+/// Every sum of the two films, bit for bit.
+fn assert_bit_identical(a: &Film, b: &Film, what: &str) {
+    let bits = |f: &Film| {
+        let mut v: Vec<u64> = Vec::new();
+        for i in 0..f.sum.len() {
+            for c in 0..3 {
+                v.push(f.sum[i][c].to_bits());
+                v.push(f.sum_sq[i][c].to_bits());
+                v.push(f.sum_w2[i][c].to_bits());
+                v.push(f.sum_sq_w2[i][c].to_bits());
+            }
+            v.push(f.weight[i].to_bits());
+            v.push(f.weight_sq[i].to_bits());
+            v.push(f.weight_cube[i].to_bits());
+        }
+        v
+    };
+    assert_eq!(a.samples, b.samples, "{what}: sample counts");
+    assert!(bits(a) == bits(b), "{what}: the sums differ");
+    let img = |f: &Film| -> Vec<u32> {
+        f.image()
+            .iter()
+            .chain(f.sample_variance().iter())
+            .flat_map(|p| p.map(f32::to_bits))
+            .collect()
+    };
+    assert!(img(a) == img(b), "{what}: the images differ");
+}
+
+#[test]
+fn any_split_in_any_order_merges_to_the_one_process_render() {
+    // 64 × 64 px: passes of 64 spp, so 300 spp are 5 passes (4 × 64 + 44).
+    let (scene, hash) = load_with_hash("scenes/cornell-box.xml", &[("res", "64")]);
+    assert_eq!(pass_spp(scene.width, scene.height), 64);
+    let single = one_process(&scene, hash, 300);
+    for n in [1u32, 2, 3, 5] {
+        let mut parts: Vec<_> = (0..n).map(|i| part(&scene, hash, i, n, 300, 0)).collect();
+        // Merge in a scrambled order.
+        parts.reverse();
+        if parts.len() > 2 {
+            parts.swap(0, 1);
+        }
+        let merged = merge_parts(parts, None).expect("merges");
+        assert_eq!(merged.samples, 300);
+        assert_bit_identical(&merged.film(), &single, &format!("{n} parts"));
+    }
+    // A wide filter splats across pixels and tiles: the same holds.
+    let (scene, hash) = load_with_hash("scenes/cornell-gaussian.xml", &[("res", "32")]);
+    let single = one_process(&scene, hash, 600);
+    let parts = (0..3).map(|i| part(&scene, hash, i, 3, 600, 0)).collect();
+    assert_bit_identical(
+        &merge_parts(parts, None).expect("merges").film(),
+        &single,
+        "gaussian filter, 3 parts",
+    );
+}
+
+#[test]
+fn more_parts_extend_a_render_as_rendering_more_spp_does() {
+    let (scene, hash) = load_with_hash("scenes/cornell-box.xml", &[("res", "64")]);
+    let first: Vec<_> = (0..2).map(|i| part(&scene, hash, i, 2, 192, 0)).collect();
+    let more: Vec<_> = (0..2).map(|i| part(&scene, hash, i, 2, 300, 192)).collect();
+    let all: Vec<_> = first.iter().cloned().chain(more).collect();
+    assert_bit_identical(
+        &merge_parts(all.clone(), None).expect("merges").film(),
+        &one_process(&scene, hash, 300),
+        "192 spp extended to 300",
+    );
+    // A ladder rung: the samples up to a part boundary, as a 192-spp render.
+    assert_bit_identical(
+        &merge_parts(all, Some(192)).expect("merges").film(),
+        &one_process(&scene, hash, 192),
+        "the first 192 spp",
+    );
+}
+
+#[test]
+fn bad_sets_of_parts_are_refused_with_one_line() {
+    let (scene, hash) = load_with_hash("scenes/cornell-box.xml", &[("res", "64")]);
+    let p = |i, n| part(&scene, hash, i, n, 300, 0);
+    let (a0, a1, a2) = (p(0, 3), p(1, 3), p(2, 3));
+    let (other_scene, other_hash) = load_with_hash(
+        "scenes/cornell-box.xml",
+        &[("res", "64"), ("max_depth", "3")],
+    );
+    let foreign = part(&other_scene, other_hash, 1, 3, 300, 0);
+    let mut other_seed = a1.clone();
+    other_seed.1.seed += 1;
+    let mut other_version = a1.clone();
+    other_version.1.version = "0.0.0-other".into();
+    let mut checkpoint = a1.clone();
+    checkpoint.1.part = None;
+    let overlapping = p(0, 2); // samples 0..128, over a0 (0..64) and a1 (64..192)
+    let cases: Vec<(Vec<(PathBuf, Checkpoint)>, &str)> = vec![
+        (
+            vec![a0.clone(), a2.clone()],
+            "parts 1/3 of 300 spp (samples 64..192) are not among",
+        ),
+        (
+            vec![a1.clone(), a2.clone()],
+            "parts 0/3 of 300 spp (samples 0..64) are not among",
+        ),
+        (
+            vec![a0.clone(), a1.clone()],
+            "parts 2/3 of 300 spp (samples 192..300) are not among",
+        ),
+        (
+            vec![a0.clone(), a1.clone(), a1.clone(), a2.clone()],
+            "duplicate parts",
+        ),
+        (
+            vec![a0.clone(), overlapping, a1.clone(), a2.clone()],
+            "overlapping parts",
+        ),
+        (vec![a0.clone(), foreign, a2.clone()], "from another scene"),
+        (
+            vec![a0.clone(), other_seed, a2.clone()],
+            "with another seed",
+        ),
+        (
+            vec![a0.clone(), other_version, a2.clone()],
+            "by another penumbra version",
+        ),
+        (
+            vec![a0.clone(), checkpoint, a2.clone()],
+            "is a checkpoint, not a part file",
+        ),
+        (vec![a0.clone(), a1.clone(), a2.clone()], ""),
+        (vec![], "no part files"),
+    ];
+    for (parts, expected) in cases {
+        let names: Vec<String> = parts.iter().map(|(n, _)| n.display().to_string()).collect();
+        match merge_parts(parts, None) {
+            Ok(_) => assert!(
+                expected.is_empty(),
+                "{names:?}: merged, expected {expected}"
+            ),
+            Err(e) => {
+                let e = e.to_string();
+                assert!(
+                    !expected.is_empty() && e.contains(expected),
+                    "{names:?}: {e} (expected {expected})"
+                );
+                assert!(!e.contains('\n'), "{e}");
+            }
+        }
+    }
+    // A --spp that is not a part boundary.
+    let e = merge_parts(vec![a0, a1, a2], Some(100)).expect_err("inside a part");
+    assert!(e.to_string().contains("falls inside"), "{e}");
+    // Impossible plans.
+    for (i, n, start, why) in [
+        (0u32, 6u32, 0u64, "at most 5 parts"),
+        (0, 2, 100, "multiple of the pass size"),
+        (3, 3, 0, "below the part count"),
+    ] {
+        let plan = PartPlan {
+            index: i,
+            count: n,
+            plan_spp: 300,
+            start_spp: start,
+        };
+        let e = render_part(&scene, &plan, SEED, None, hash).expect_err("refused");
+        assert!(e.to_string().contains(why), "{e}");
+    }
+}
+
+#[test]
+fn part_files_round_trip_and_corruption_is_refused() {
+    let (scene, hash) = load_with_hash("scenes/cornell-box.xml", &[("res", "16")]);
+    let (_, c) = part(&scene, hash, 0, 1, 8, 0);
+    let dir = std::path::Path::new(env!("CARGO_TARGET_TMPDIR")).join("parts-roundtrip");
+    std::fs::create_dir_all(&dir).expect("tmp dir");
+    let path = dir.join("p.pnbr");
+    c.write(&path).expect("writes");
+    let back = Checkpoint::read(&path).expect("reads");
+    assert_eq!(back.exact, c.exact);
+    assert_eq!(
+        (back.first_sample, back.samples, back.plan_spp, back.part),
+        (0, 8, 8, Some((0, 1)))
+    );
+    assert_eq!(back.filter, c.filter);
+    let mut bytes = std::fs::read(&path).expect("bytes");
+    let mid = bytes.len() / 2;
+    bytes[mid] ^= 1;
+    std::fs::write(&path, &bytes).expect("write");
+    let e = Checkpoint::read(&path).expect_err("corrupt");
+    assert!(e.to_string().contains("checksum mismatch"), "{e}");
+}
