@@ -243,3 +243,84 @@ fn part_files_round_trip_and_corruption_is_refused() {
     let e = Checkpoint::read(&path).expect_err("corrupt");
     assert!(e.to_string().contains("checksum mismatch"), "{e}");
 }
+
+/// The command line: `render --part` writes a part file, `merge` reads them; bad input ends in
+/// one error line.
+#[test]
+fn command_line_parts_and_merge() {
+    let bin = env!("CARGO_BIN_EXE_penumbra");
+    let dir = std::path::Path::new(env!("CARGO_TARGET_TMPDIR")).join("parts-cli");
+    std::fs::create_dir_all(&dir).expect("tmp dir");
+    let scene = repo_path("scenes/cornell-box.xml");
+    let run = |args: &[&str]| {
+        std::process::Command::new(bin)
+            .args(args)
+            .output()
+            .expect("runs")
+    };
+    let err_line = |o: &std::process::Output| {
+        let e = String::from_utf8_lossy(&o.stderr).trim().to_string();
+        assert!(!o.status.success(), "succeeded: {e}");
+        e
+    };
+    let s = scene.to_str().expect("utf-8");
+    let p = |i: u32| dir.join(format!("p{i}.pnbr")).display().to_string();
+    for i in 0..2 {
+        let o = run(&[
+            "render",
+            s,
+            "-D",
+            "res=16",
+            "--spp",
+            "600",
+            "--part",
+            &format!("{i}/2"),
+            "--quiet",
+            "-o",
+            &p(i),
+        ]);
+        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    }
+    let out = dir.join("merged.exr").display().to_string();
+    let o = run(&["merge", &p(1), &p(0), "--quiet", "-o", &out]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let single = dir.join("single.exr").display().to_string();
+    let o = run(&[
+        "render", s, "-D", "res=16", "--spp", "600", "--quiet", "-o", &single,
+    ]);
+    assert!(o.status.success());
+    let (a, b) = (
+        penumbra::io::exr::read(std::path::Path::new(&out)).expect("merged"),
+        penumbra::io::exr::read(std::path::Path::new(&single)).expect("single"),
+    );
+    assert!(
+        a.rgb == b.rgb,
+        "merged EXR differs from the one-process render"
+    );
+    // Errors: one line each.
+    for (args, expected) in [
+        (
+            vec!["render", s, "--part", "2/2", "-o", "x.pnbr"],
+            "is not a part",
+        ),
+        (vec!["merge", &p(0), "-o", "x.exr"], "missing samples"),
+        (vec!["merge", "no-such.pnbr", "-o", "x.exr"], "no-such.pnbr"),
+        (
+            vec!["merge", s, "-o", "x.exr"],
+            "not a valid penumbra checkpoint or part file",
+        ),
+    ] {
+        let e = err_line(&run(&args));
+        assert!(e.contains(expected), "{args:?}: {e}");
+        // One error line (clap adds its "For more information, try '--help'." hint).
+        assert_eq!(
+            e.lines().filter(|l| l.starts_with("error")).count(),
+            1,
+            "{args:?}: {e}"
+        );
+        assert!(
+            e.lines().next().unwrap_or("").contains(expected),
+            "{args:?}: {e}"
+        );
+    }
+}
