@@ -508,7 +508,7 @@ impl ExactFilm {
             }
         }
         self.values = next;
-        self.samples += f.samples;
+        self.samples = self.samples.saturating_add(f.samples);
         Ok(())
     }
 
@@ -525,7 +525,7 @@ impl ExactFilm {
                     .ok_or("a sum is too large to accumulate exactly")?;
             }
         }
-        self.samples += o.samples;
+        self.samples = self.samples.saturating_add(o.samples);
         Ok(())
     }
 

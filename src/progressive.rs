@@ -374,12 +374,6 @@ impl Checkpoint {
 
     /// Reads a checkpoint or part file written by [`Checkpoint::write`].
     pub fn read(path: &Path) -> Result<Self> {
-        let bad = |m: &str| {
-            Error::Invalid(format!(
-                "{}: not a valid penumbra checkpoint or part file ({m})",
-                path.display()
-            ))
-        };
         let mut bytes = Vec::new();
         std::fs::File::open(path)
             .and_then(|mut f| f.read_to_end(&mut bytes))
@@ -387,6 +381,18 @@ impl Checkpoint {
                 path: path.to_path_buf(),
                 cause,
             })?;
+        Self::parse(&bytes, path)
+    }
+
+    /// Parses the bytes of a checkpoint or part file; `path` names it in errors. Never
+    /// panics, and allocates only for a film whose bytes are all present.
+    pub fn parse(bytes: &[u8], path: &Path) -> Result<Self> {
+        let bad = |m: &str| {
+            Error::Invalid(format!(
+                "{}: not a valid penumbra checkpoint or part file ({m})",
+                path.display()
+            ))
+        };
         if bytes.len() >= 8 && &bytes[..7] == b"PNBRCKP" && bytes[..8] != MAGIC[..] {
             return Err(bad("written by an older penumbra"));
         }
@@ -435,6 +441,12 @@ impl Checkpoint {
             for v in px.iter_mut() {
                 *v = r.i128().ok_or_else(|| bad("truncated"))?;
             }
+        }
+        if pass_spp == 0 || sampler_points == 0 {
+            return Err(bad("zero pass size"));
+        }
+        if first_sample.checked_add(samples).is_none() || plan_start > plan_spp {
+            return Err(bad("sample range"));
         }
         let part = (part_n > 0).then_some((part_i, part_n));
         if part.is_some_and(|(i, n)| i >= n) {
@@ -489,6 +501,9 @@ pub struct PartPlan {
 /// [start, plan) split into `count` contiguous runs of whole passes, as evenly as possible.
 pub fn part_range(plan: &PartPlan, pass: u32) -> Result<(u64, u64)> {
     let p = pass as u64;
+    if p == 0 {
+        return Err(Error::Invalid("the pass size is zero".into()));
+    }
     if plan.count == 0 || plan.index >= plan.count {
         return Err(Error::Invalid(format!(
             "--part {}/{}: the index must be below the part count",
@@ -508,8 +523,9 @@ pub fn part_range(plan: &PartPlan, pass: u32) -> Result<(u64, u64)> {
             plan.index, plan.count
         )));
     }
-    let at = |k: u64| (plan.start_spp + k * p).min(plan.plan_spp);
-    let (i, n) = (plan.index as u64, plan.count as u64);
+    // In u128: no overflow for any plan.
+    let at = |k: u128| (plan.start_spp as u128 + k * p as u128).min(plan.plan_spp as u128) as u64;
+    let (i, n, passes) = (plan.index as u128, plan.count as u128, passes as u128);
     Ok((at(i * passes / n), at((i + 1) * passes / n)))
 }
 
@@ -673,9 +689,14 @@ pub fn merge_parts(
             )));
         }
         merged.add_exact(&c.exact).map_err(Error::Invalid)?;
-        stats.paths += c.stats.paths;
-        stats.path += c.stats.path;
-        stats.nonfinite += c.stats.nonfinite;
+        stats.paths = stats.paths.saturating_add(c.stats.paths);
+        stats.path.rays = stats.path.rays.saturating_add(c.stats.path.rays);
+        stats.path.bounces = stats.path.bounces.saturating_add(c.stats.path.bounces);
+        stats.path.rr_terminated = stats
+            .path
+            .rr_terminated
+            .saturating_add(c.stats.path.rr_terminated);
+        stats.nonfinite = stats.nonfinite.saturating_add(c.stats.nonfinite);
         stats.seconds += c.stats.seconds;
         covered = b;
         prev = Some((path, c));
@@ -706,7 +727,8 @@ fn missing(a: u64, b: u64, parts: &[(PathBuf, Checkpoint)]) -> Error {
     let mut names = Vec::new();
     for (_, c) in parts {
         let Some((_, n)) = c.part else { continue };
-        for i in 0..n {
+        // Name parts only for plans of a sensible size (a corrupt count must not loop long).
+        for i in 0..n.min(100_000) {
             let plan = PartPlan {
                 index: i,
                 count: n,
