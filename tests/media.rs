@@ -432,3 +432,65 @@ fn bad_media_input_gets_one_clear_error() {
         assert!(!e.contains('\n'), "{body}: not one line: {e}");
     }
 }
+
+/// Mitsuba's depth semantics in both volumetric integrators: max_depth 1 shows only what
+/// emits towards the camera (a lit plane stays exactly black), max_depth 2 adds direct light;
+/// and the ray counter counts what was traced (at least one ray per path, at most the
+/// camera ray plus two per scattering event, each through a null surface at most).
+#[test]
+fn max_depth_one_is_emission_only_and_rays_are_counted() {
+    let light_and_plane = r#"<emitter type="directional">
+               <vector name="direction" value="0, 0, -1"/>
+               <rgb name="irradiance" value="1"/>
+           </emitter>
+           <shape type="rectangle">
+               <transform name="to_world"><scale value="3"/><translate value="0, 0, -2"/></transform>
+               <bsdf type="diffuse"/>
+           </shape>"#;
+    let with_medium = format!(
+        r#"{light_and_plane}
+           <medium type="homogeneous" id="m">
+               <rgb name="sigma_t" value="0.5"/> <rgb name="albedo" value="0.5"/>
+           </medium>
+           <shape type="cube"><bsdf type="null"/><ref id="m" name="interior"/></shape>"#
+    );
+    // Without media or null surfaces shadow rays are plain occlusion tests: both paths.
+    for (integrator, body, medium) in INTEGRATORS.iter().flat_map(|i| {
+        [
+            (*i, light_and_plane.to_string(), false),
+            (*i, with_medium.clone(), true),
+        ]
+    }) {
+        for max_depth in [1, 2, 5] {
+            let scene = scene_from_str(&scene_xml(integrator, max_depth, "", &body));
+            let out = render_scene(&scene, 16, 3, None);
+            let image = out.film.image();
+            let lit = image.iter().any(|p| p.iter().any(|&c| c > 0.0));
+            assert_eq!(
+                lit,
+                max_depth > 1,
+                "{integrator} max_depth {max_depth}: lit {lit}"
+            );
+            let s = out.stats;
+            if !medium && max_depth <= 2 {
+                // Every camera ray hits the plane: max_depth 1 traces it alone; 2 adds the
+                // shadow ray and the escaping continuation.
+                let per_path = if max_depth == 1 { 1 } else { 3 };
+                assert_eq!(
+                    s.path.rays,
+                    per_path * s.paths,
+                    "{integrator} max_depth {max_depth}"
+                );
+            }
+            // Camera ray, then per scattering event (surface or medium) one shadow ray and
+            // one continuation, each crossing the cube's two null faces at most.
+            let bound = s.paths * (1 + 2 * 3 * max_depth as u64) * 3;
+            assert!(
+                s.path.rays >= s.paths && s.path.rays <= bound,
+                "{integrator} max_depth {max_depth}: {} rays for {} paths",
+                s.path.rays,
+                s.paths
+            );
+        }
+    }
+}
