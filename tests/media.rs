@@ -14,15 +14,23 @@ use penumbra::sampler::SampleStream;
 use penumbra::study::chi2::{chi2_test_adaptive, Chi2Config};
 use penumbra::study::stats::{normal_critical_z, sidak};
 
-const INTEGRATORS: [&str; 2] = ["volpath", "volpathmis"];
+/// `volpathmis-hero` is volpathmis without spectral MIS (`use_spectral_mis` false).
+const INTEGRATORS: [&str; 3] = ["volpath", "volpathmis", "volpathmis-hero"];
 
 /// An orthographic camera at z = 5 looking down −z over [−0.8, 0.8]², 8 × 8 box-filtered
 /// pixels, the given integrator; `body` adds the rest (before the sensor, so that the
 /// sensor can refer to its media).
 fn scene_xml(integrator: &str, max_depth: i32, sensor_extra: &str, body: &str) -> String {
+    let (integrator, extra) = match integrator {
+        "volpathmis-hero" => (
+            "volpathmis",
+            r#"<boolean name="use_spectral_mis" value="false"/>"#,
+        ),
+        other => (other, ""),
+    };
     format!(
         r#"<scene version="3.0.0">
-            <integrator type="{integrator}"><integer name="max_depth" value="{max_depth}"/></integrator>
+            <integrator type="{integrator}"><integer name="max_depth" value="{max_depth}"/>{extra}</integrator>
             {body}
             <sensor type="orthographic">
                 <float name="near_clip" value="0.0001"/>
@@ -366,6 +374,25 @@ fn albedo_one_media_in_a_uniform_environment_are_invisible() {
             &grid,
             "null",
         ),
+        // Without spectral MIS the channel weights are volpath's: grey behind the dielectric.
+        (
+            "volpathmis-hero",
+            "homogeneous rgb hg, null boundary",
+            &chromatic,
+            "null",
+        ),
+        (
+            "volpathmis-hero",
+            "homogeneous grey hg, dielectric boundary",
+            &grey,
+            "dielectric",
+        ),
+        (
+            "volpathmis-hero",
+            "heterogeneous rgb, null boundary",
+            &grid,
+            "null",
+        ),
     ];
     let mut z = ZTests::new(cases.len() * 3);
     for (integrator, name, medium, boundary) in cases {
@@ -479,6 +506,12 @@ fn max_depth_one_is_emission_only_and_rays_are_counted() {
                 assert_eq!(
                     s.path.rays,
                     per_path * s.paths,
+                    "{integrator} max_depth {max_depth}"
+                );
+                // One (diffuse) bounce per path: the BSDF is sampled at the plane even when
+                // max_depth then ends the path, as in Mitsuba.
+                assert_eq!(
+                    s.path.bounces, s.paths,
                     "{integrator} max_depth {max_depth}"
                 );
             }
