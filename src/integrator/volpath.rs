@@ -76,6 +76,50 @@ pub(crate) fn channel_of(v: Vec3, c: usize) -> f32 {
     v[c]
 }
 
+/// One delta-tracking step along `ray` in `med` (Mitsuba's loop body): a tentative collision
+/// drawn with `channel`'s majorant (in a homogeneous medium, whose collisions are all real,
+/// the ray is cut there, at most at `limit`), the closest surface along the ray (intersected
+/// once and kept in `hit`), and the collision dropped when that surface comes first. Returns
+/// the collision and the surface's distance (∞ without one).
+#[allow(clippy::too_many_arguments)]
+pub(crate) fn track_step(
+    scene: &Scene,
+    med: &Medium,
+    ray: &mut Ray,
+    limit: f32,
+    hit: &mut Option<Option<SurfaceInteraction>>,
+    channel: usize,
+    sampler: &mut SampleStream,
+    stats: &mut PathStats,
+) -> (MediumInteraction, f32) {
+    let mut mi = med.sample_interaction(ray, sampler.next_1d(), channel);
+    if med.is_homogeneous() && mi.is_valid() {
+        ray.tmax = mi.t.min(limit);
+    }
+    let si = *hit.get_or_insert_with(|| {
+        stats.rays += 1;
+        scene.intersect(ray)
+    });
+    let si_t = si.map_or(f32::INFINITY, |s| s.t);
+    if si_t < mi.t {
+        mi.t = f32::INFINITY;
+    }
+    (mi, si_t)
+}
+
+/// Moves the ray's origin to the (null) collision `mi`, keeping the surface found ahead.
+#[inline]
+pub(crate) fn pass_collision(
+    ray: &mut Ray,
+    hit: &mut Option<Option<SurfaceInteraction>>,
+    mi: &MediumInteraction,
+) {
+    ray.o = mi.p;
+    if let Some(Some(s)) = hit.as_mut() {
+        s.t -= mi.t;
+    }
+}
+
 /// Traces the shadow ray of emitter sample `ds` from `from` through media and null surfaces
 /// (Mitsuba's `sample_emitter` loop), reporting what it meets to `w`. `medium` is the medium
 /// the path is in at `from`.
@@ -122,18 +166,9 @@ pub(crate) fn trace_shadow<W: ShadowWeights>(
         ray.tmax = remaining;
         if let Some(m) = medium {
             let med = &scene.media[m as usize];
-            let mut mi = med.sample_interaction(&ray, sampler.next_1d(), channel);
-            if med.is_homogeneous() && mi.is_valid() {
-                ray.tmax = mi.t.min(remaining);
-            }
-            let si = *hit.get_or_insert_with(|| {
-                stats.rays += 1;
-                scene.intersect(&ray)
-            });
-            let si_t = si.map_or(f32::INFINITY, |s| s.t);
-            if si_t < mi.t {
-                mi.t = f32::INFINITY;
-            }
+            let (mut mi, si_t) = track_step(
+                scene, med, &mut ray, remaining, &mut hit, channel, sampler, stats,
+            );
             let t = remaining.min(mi.t.min(si_t)) - mi.mint;
             let tr = exp3(-t * mi.combined_extinction);
             let pdf = if si_t < mi.t || mi.t > remaining {
@@ -148,10 +183,7 @@ pub(crate) fn trace_shadow<W: ShadowWeights>(
             if mi.is_valid() {
                 // A collision before the surface: pass it as a null one.
                 total += mi.t;
-                ray.o = mi.p;
-                if let Some(Some(s)) = hit.as_mut() {
-                    s.t -= mi.t;
-                }
+                pass_collision(&mut ray, &mut hit, &mi);
                 w.collision(&mi, channel);
                 if w.is_zero() {
                     return;
@@ -292,18 +324,16 @@ impl VolPathIntegrator {
             let mut escaped_medium = medium.is_none();
             if let Some(m) = medium {
                 let med: &Medium = &scene.media[m as usize];
-                let mut mi = med.sample_interaction(&ray, sampler.next_1d(), channel);
-                if med.is_homogeneous() && mi.is_valid() {
-                    ray.tmax = mi.t;
-                }
-                let si = *hit.get_or_insert_with(|| {
-                    stats.rays += 1;
-                    scene.intersect(&ray)
-                });
-                let si_t = si.map_or(f32::INFINITY, |s| s.t);
-                if si_t < mi.t {
-                    mi.t = f32::INFINITY;
-                }
+                let (mi, si_t) = track_step(
+                    scene,
+                    med,
+                    &mut ray,
+                    f32::INFINITY,
+                    &mut hit,
+                    channel,
+                    sampler,
+                    stats,
+                );
                 let (tr, pdf) = Medium::transmittance_eval_pdf(&mi, si_t);
                 let tr_pdf = channel_of(pdf, channel);
                 throughput *= if tr_pdf > 0.0 {
@@ -316,10 +346,7 @@ impl VolPathIntegrator {
                     if sampler.next_1d() < null_prob {
                         // A null collision: continue along the ray from there.
                         throughput *= mi.sigma_n / null_prob;
-                        ray.o = mi.p;
-                        if let Some(Some(s)) = hit.as_mut() {
-                            s.t -= mi.t;
-                        }
+                        pass_collision(&mut ray, &mut hit, &mi);
                         continue;
                     }
                     // A real collision: scatter.

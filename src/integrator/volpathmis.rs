@@ -24,7 +24,10 @@
 //! | `hide_emitters` | false |
 //! | `use_spectral_mis` | true |
 
-use super::volpath::{pick_channel, skip_area_emitters, trace_shadow, ShadowWeights, Vertex};
+use super::volpath::{
+    pass_collision, pick_channel, skip_area_emitters, trace_shadow, track_step, ShadowWeights,
+    Vertex,
+};
 use crate::bsdf::Spectrum;
 use crate::emitter::DirectionSample;
 use crate::geometry::Ray;
@@ -240,18 +243,16 @@ impl VolPathMisIntegrator {
             // Sampling the medium the ray travels in.
             if let Some(m) = medium {
                 let med: &Medium = &scene.media[m as usize];
-                let mut mi = med.sample_interaction(&ray, sampler.next_1d(), channel);
-                if med.is_homogeneous() && mi.is_valid() {
-                    ray.tmax = mi.t;
-                }
-                let si = *hit.get_or_insert_with(|| {
-                    stats.rays += 1;
-                    scene.intersect(&ray)
-                });
-                let si_t = si.map_or(f32::INFINITY, |s| s.t);
-                if si_t < mi.t {
-                    mi.t = f32::INFINITY;
-                }
+                let (mi, si_t) = track_step(
+                    scene,
+                    med,
+                    &mut ray,
+                    f32::INFINITY,
+                    &mut hit,
+                    channel,
+                    sampler,
+                    stats,
+                );
                 let (tr, pdf) = Medium::transmittance_eval_pdf(&mi, si_t);
                 p_over_f.update(pdf, tr, channel);
                 p_over_f_nee.update(pdf, tr, channel);
@@ -261,10 +262,7 @@ impl VolPathMisIntegrator {
                         last_event_was_null = true;
                         p_over_f.update(Vec3::splat(null_prob), mi.sigma_n, channel);
                         p_over_f_nee.update(Vec3::ONE, mi.sigma_n, channel);
-                        ray.o = mi.p;
-                        if let Some(Some(s)) = hit.as_mut() {
-                            s.t -= mi.t;
-                        }
+                        pass_collision(&mut ray, &mut hit, &mi);
                         continue;
                     }
                     depth += 1;
