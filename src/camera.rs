@@ -12,7 +12,7 @@
 
 use crate::geometry::Ray;
 use crate::sampling::square_to_uniform_disk_concentric;
-use glam::{DMat4, DVec3, Vec2, Vec3};
+use glam::{DMat4, DVec2, DVec3, Vec2, Vec3};
 
 /// Which image axis `fov` spans (Mitsuba's `fov_axis`).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -63,6 +63,26 @@ pub struct PerspectiveCamera {
     far_clip: f32,
     /// The thin lens, if any (`None`: pinhole).
     lens: Option<ThinLens>,
+    /// World to camera space (the inverse of `to_world`), for connecting points to the
+    /// pinhole ([`PerspectiveCamera::sample_direction`]).
+    to_local: DMat4,
+}
+
+/// A connection from a point in the scene to the camera's pinhole (Mitsuba's
+/// `Sensor::sample_direction`), for light tracing.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct SensorSample {
+    /// Where the point appears on the film, in [0,1]² (x right, y down).
+    pub film: Vec2,
+    /// The pinhole's position.
+    pub p: Vec3,
+    /// Unit direction from the point to the pinhole.
+    pub d: Vec3,
+    /// Distance from the point to the pinhole.
+    pub dist: f32,
+    /// The importance arriving at the point: W_e / dist², with W_e the pinhole's directional
+    /// response (see [`PerspectiveCamera::sample_direction`]).
+    pub weight: f32,
 }
 
 /// Aperture and focus of a `thinlens` sensor.
@@ -86,6 +106,7 @@ impl PerspectiveCamera {
             near_clip: near_clip as f32,
             far_clip: far_clip as f32,
             lens: None,
+            to_local: to_world.inverse(),
         }
     }
 
@@ -126,6 +147,49 @@ impl PerspectiveCamera {
             d.as_vec3(),
             (far_t - near_t) as f32,
         )
+    }
+
+    /// Connects the point `p` to the pinhole (Mitsuba's `sample_direction` of the perspective
+    /// sensor): `None` when `p` lies outside the image or the clipping range (measured along
+    /// the local z axis) or the camera has a thin lens.
+    ///
+    /// The importance W_e is the pinhole's response normalised so that it integrates to 1
+    /// over the image: a film position drawn uniformly on the image rectangle at distance 1,
+    /// of area A = (2 tan(fov_x/2))² / aspect, has the solid-angle density 1 / (A cos³θ), θ
+    /// the angle to the optical axis, so W_e(ω) = 1 / (A cos³θ) (Veach 1997, §10.2; pbrt-v4
+    /// §5.4.1). A path vertex that sees the pinhole contributes W_e / dist² times what
+    /// arrives there to the pixel it lands in, per sample of the whole image.
+    pub fn sample_direction(&self, p: Vec3) -> Option<SensorSample> {
+        if self.lens.is_some() {
+            return None;
+        }
+        let local = self.to_local.transform_point3(p.as_dvec3());
+        if !(local.z >= self.near_clip as f64 && local.z <= self.far_clip as f64) {
+            return None;
+        }
+        let (x, y) = (local.x / local.z, local.y / local.z);
+        let film = DVec2::new(
+            0.5 * (1.0 - x / self.tan_half_x),
+            0.5 * (1.0 - y * self.aspect / self.tan_half_x),
+        );
+        if !(film.cmpge(DVec2::ZERO).all() && film.cmple(DVec2::ONE).all()) {
+            return None;
+        }
+        let v = self.origin.as_dvec3() - p.as_dvec3();
+        let dist = v.length();
+        if !(dist > 0.0 && dist.is_finite()) {
+            return None;
+        }
+        let cos = local.z / local.length();
+        let area = 4.0 * self.tan_half_x * self.tan_half_x / self.aspect;
+        let we = 1.0 / (area * cos * cos * cos);
+        Some(SensorSample {
+            film: film.as_vec2(),
+            p: self.origin,
+            d: (v / dist).as_vec3(),
+            dist: dist as f32,
+            weight: (we / (dist * dist)) as f32,
+        })
     }
 
     /// The local (camera-space) unit direction through film position `s` ∈ [0,1]².
@@ -251,6 +315,29 @@ impl Camera {
         }
     }
 
+    /// Connects the point `p` to the camera for light tracing; only the pinhole
+    /// `perspective` camera can (see [`Camera::supports_light_tracing`]).
+    pub fn sample_direction(&self, p: Vec3) -> Option<SensorSample> {
+        match self {
+            Camera::Perspective(c) => c.sample_direction(p),
+            Camera::Orthographic(_) => None,
+        }
+    }
+
+    /// The pinhole's position (the film centre for an orthographic camera).
+    pub fn position(&self) -> Vec3 {
+        match self {
+            Camera::Perspective(c) => c.origin,
+            Camera::Orthographic(c) => c.centre.as_vec3(),
+        }
+    }
+
+    /// Whether light tracing can connect to this camera: a pinhole `perspective` one (a thin
+    /// lens or an orthographic camera would need an aperture or film-plane sample).
+    pub fn supports_light_tracing(&self) -> bool {
+        matches!(self, Camera::Perspective(c) if c.lens.is_none())
+    }
+
     /// The primary ray through film position `s` with aperture sample `u` ∈ [0,1)² (used
     /// only by a thin lens).
     pub fn generate_ray_lens(&self, s: Vec2, u: Vec2) -> Ray {
@@ -275,6 +362,87 @@ mod tests {
             dir.extend(0.0),
             origin.extend(1.0),
         )
+    }
+
+    /// A point on the camera ray through film position s projects back to s, and the
+    /// direction to the pinhole is the ray's reversed (light tracing meets the camera where
+    /// camera rays leave it).
+    #[test]
+    fn sample_direction_inverts_generate_ray() {
+        let m = look(
+            DVec3::new(1.0, 2.0, 3.0),
+            DVec3::new(-2.0, 0.5, -4.0),
+            DVec3::new(0.1, 1.0, 0.0),
+        );
+        let cam = PerspectiveCamera::new(m, 65.0, 1.6, 1e-2, 1e4);
+        for (i, s) in [
+            (0.5, 0.5),
+            (0.01, 0.02),
+            (0.99, 0.5),
+            (0.3, 0.97),
+            (0.75, 0.25),
+        ]
+        .into_iter()
+        .enumerate()
+        {
+            let s = Vec2::new(s.0, s.1);
+            let ray = cam.generate_ray(s);
+            let p = ray.at(0.5 + 3.0 * i as f32);
+            let c = cam.sample_direction(p).expect("inside the image");
+            assert!((c.film - s).abs().max_element() < 1e-5, "{} vs {s}", c.film);
+            assert!((c.d + ray.d).length() < 1e-5);
+            assert!((c.p - c.d * c.dist - p).length() < 1e-4);
+        }
+        // Behind the camera, outside the frustum, nearer than the near clip: no connection.
+        let o = DVec3::new(1.0, 2.0, 3.0).as_vec3();
+        let fwd = (DVec3::new(-3.0, -1.5, -7.0).normalize()).as_vec3();
+        assert!(cam.sample_direction(o - fwd).is_none());
+        assert!(cam.sample_direction(o + fwd * 0.005).is_none());
+        assert!(cam
+            .sample_direction(o + fwd + Vec3::new(0.0, 5.0, 0.0))
+            .is_none());
+        // A thin lens cannot be connected to by a point.
+        let lens = cam.clone().with_thin_lens(ThinLens {
+            aperture_radius: 0.1,
+            focus_distance: 2.0,
+        });
+        assert!(lens.sample_direction(o + fwd).is_none());
+    }
+
+    /// W_e integrates to 1 over the image's solid angle: a midpoint-rule sum over the
+    /// sphere of directions (1200 x 2400 cells), independent of the film mapping used to
+    /// derive W_e. A pixel then receives 1/(width·height) of a uniform unit radiance field's
+    /// importance, which is what makes a light-traced image equal a camera-traced one.
+    #[test]
+    fn importance_integrates_to_one_over_the_image() {
+        for (fov, aspect) in [(40.0, 1.0), (70.0, 8.0), (100.0, 0.5)] {
+            let m = look(DVec3::ZERO, DVec3::new(0.0, 0.0, 1.0), DVec3::Y);
+            let cam = PerspectiveCamera::new(m, fov, aspect, 1e-2, 1e4);
+            let (nt, np) = (1200, 2400);
+            let (dt, dp) = (
+                std::f64::consts::PI / nt as f64,
+                2.0 * std::f64::consts::PI / np as f64,
+            );
+            let mut sum = 0.0;
+            for i in 0..nt / 2 {
+                let theta = (i as f64 + 0.5) * dt;
+                for j in 0..np {
+                    let phi = (j as f64 + 0.5) * dp;
+                    let d = DVec3::new(
+                        theta.sin() * phi.cos(),
+                        theta.sin() * phi.sin(),
+                        theta.cos(),
+                    );
+                    if let Some(c) = cam.sample_direction((d * 10.0).as_vec3()) {
+                        sum += c.weight as f64 * 100.0 * theta.sin() * dt * dp;
+                    }
+                }
+            }
+            assert!(
+                (sum - 1.0).abs() < 2e-3,
+                "fov {fov}, aspect {aspect}: {sum}"
+            );
+        }
     }
 
     #[test]

@@ -1176,3 +1176,120 @@ fn sample_weight_and_pdf_match_eval_and_pdf() {
         .collect();
     assert!(failures.is_empty(), "{}", failures.join("\n"));
 }
+
+/// Light tracing uses BSDFs in importance mode (`ShadingBsdf::importance`): continuing
+/// a light path with its sample weight and connecting to the camera with its eval.
+/// - For every non-delta sample of every BSDF here, importance `weight · pdf == eval`
+///   within 2e-3 relative (as the radiance-mode test above).
+/// - Independent truth for the η² factor: the physical BSDF is reciprocal (Veach 1997,
+///   §6.2), so on refraction importance eval(wi, wo) |cos θi| equals radiance eval(wo, wi)
+///   |cos θo| for the refracting BSDFs (rough dielectric, principled with spec_trans);
+///   without the factor it is off by η² = 2.25 (or 1.69 for η = 1.3).
+/// - The smooth dielectric (no eval): at normal incidence from outside (η = 1.5) the
+///   refracted importance weight is exactly the transmittance 1, radiance's 1/η².
+#[test]
+fn importance_mode_weight_matches_eval_and_reciprocity() {
+    const TOL: f32 = 2e-3;
+    let cases = every_case();
+    let mut refracting = 0usize;
+    let failures: Vec<String> = cases
+        .par_iter()
+        .enumerate()
+        .flat_map_iter(|(i, (c, b))| {
+            let imp = b.clone().importance();
+            let dirs = incident_directions(b);
+            let mut rng = SampleStream::new(0xad10, i as u64, 0);
+            let mut out = Vec::new();
+            let reciprocal = c.xml.contains("roughdielectric")
+                || (c.xml.contains("\"principled\"") && c.xml.contains("spec_trans"));
+            for wi in dirs {
+                for _ in 0..500 {
+                    let (u1, u2) = (rng.next_1d(), rng.next_2d());
+                    let Some(bs) = imp.sample(wi, u1, u2) else {
+                        continue;
+                    };
+                    if bs.delta || bs.null {
+                        continue;
+                    }
+                    let cos = wi.z.abs().min(bs.wo.z.abs());
+                    if f32::EPSILON / (c.alpha * cos) > 2.5e-4 {
+                        continue;
+                    }
+                    let f = imp.eval(wi, bs.wo);
+                    let fs = bs.weight * bs.pdf;
+                    let scale = f.max_element().max(fs.max_element());
+                    if (fs - f).abs().max_element() > TOL * scale {
+                        out.push(format!(
+                            "{} {}: wi {wi} wo {}: importance weight·pdf {fs} vs eval {f}",
+                            c.name, c.xml, bs.wo
+                        ));
+                    }
+                    if reciprocal && wi.z * bs.wo.z < 0.0 && cos > 0.05 {
+                        let lhs = f * wi.z.abs();
+                        let rhs = b.eval(bs.wo, wi) * bs.wo.z.abs();
+                        let scale = lhs.max_element().max(rhs.max_element());
+                        if scale > 1e-6 && (lhs - rhs).abs().max_element() > 1e-2 * scale {
+                            out.push(format!(
+                                "{}: wi {wi} wo {}: importance f|cos i| {lhs} vs radiance swapped {rhs}",
+                                c.name, bs.wo
+                            ));
+                        }
+                        out.push(String::from("#refracting"));
+                    }
+                }
+            }
+            out
+        })
+        .collect();
+    refracting += failures.iter().filter(|f| *f == "#refracting").count();
+    let failures: Vec<&String> = failures
+        .iter()
+        .filter(|f| *f != "#refracting")
+        .take(6)
+        .collect();
+    assert!(
+        refracting > 1000,
+        "only {refracting} refracted samples checked"
+    );
+    assert!(failures.is_empty(), "{failures:#?}");
+
+    let glass = bsdf_from_xml(
+        r#"<bsdf type="dielectric"><float name="int_ior" value="1.5"/><float name="ext_ior" value="1"/></bsdf>"#,
+    );
+    let wi = Vec3::Z;
+    // u1 = 0.99 > F = 0.04: the refracted lobe.
+    let imp = glass
+        .clone()
+        .importance()
+        .sample(wi, 0.99, Vec2::splat(0.5))
+        .unwrap();
+    let rad = glass.sample(wi, 0.99, Vec2::splat(0.5)).unwrap();
+    assert!(imp.wo.z < 0.0 && rad.wo.z < 0.0);
+    assert!(
+        (imp.weight - Vec3::ONE).abs().max_element() < 1e-6,
+        "{}",
+        imp.weight
+    );
+    assert!(
+        (rad.weight - Vec3::splat(1.0 / 2.25)).abs().max_element() < 1e-6,
+        "{}",
+        rad.weight
+    );
+    // From inside: importance 1, radiance η².
+    let imp = glass
+        .clone()
+        .importance()
+        .sample(-wi, 0.99, Vec2::splat(0.5))
+        .unwrap();
+    let rad = glass.sample(-wi, 0.99, Vec2::splat(0.5)).unwrap();
+    assert!(
+        (imp.weight - Vec3::ONE).abs().max_element() < 1e-6,
+        "{}",
+        imp.weight
+    );
+    assert!(
+        (rad.weight - Vec3::splat(2.25)).abs().max_element() < 1e-5,
+        "{}",
+        rad.weight
+    );
+}

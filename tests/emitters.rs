@@ -626,3 +626,104 @@ fn emitter_power_closed_forms() {
         "projector: {got} vs {want}"
     );
 }
+
+/// Light tracing starts its paths with `Emitter::sample_ray`, whose weight is emitted
+/// radiance × measurement / density: its mean is the emitted power, known in closed form
+/// (per channel): area π A L (A = 4 here), point 4π I, spot 2π I ∫ falloff(θ) sin θ dθ
+/// (the integral by Simpson's rule over Mitsuba's linear falloff, beam 10°, cutoff 30°),
+/// projector π · scale · E · A (A = 4: a square 90° image), directional π r² E and constant
+/// 4π · π r² L (r the scene's bounding radius). 400,000 rays each, z-test of the mean,
+/// Šidák α = 0.01 over 18 channel means; every sample's weight must be finite and every
+/// ray's direction a unit vector (and the directional light's its direction).
+#[test]
+fn emitter_rays_carry_the_emitted_power() {
+    let s = scene(
+        r#"<shape type="rectangle">
+            <transform name="to_world"><scale x="2" y="0.5"/></transform>
+            <emitter type="area"><rgb name="radiance" value="1, 2, 3"/></emitter>
+        </shape>
+        <emitter type="point"><point name="position" x="0" y="0" z="1"/><rgb name="intensity" value="3, 3, 6"/></emitter>
+        <emitter type="spot"><float name="intensity" value="2"/><float name="cutoff_angle" value="30"/><float name="beam_width" value="10"/></emitter>
+        <emitter type="projector"><rgb name="irradiance" value="0.5, 1, 1.5"/><float name="scale" value="3"/><float name="fov" value="90"/></emitter>
+        <emitter type="directional"><vector name="direction" x="0" y="0.6" z="-0.8"/><float name="irradiance" value="1.5"/></emitter>
+        <emitter type="constant"><rgb name="radiance" value="0.5, 1, 1.5"/></emitter>"#,
+    );
+    let r = s.bounding_sphere.1 as f64;
+    let (beam, cutoff) = (10f64.to_radians(), 30f64.to_radians());
+    let falloff = |t: f64| {
+        if t <= beam {
+            1.0
+        } else {
+            ((cutoff - t) / (cutoff - beam)).max(0.0)
+        }
+    };
+    let n = 100_000;
+    let h = cutoff / n as f64;
+    let simpson: f64 = (0..=n)
+        .map(|k| {
+            let t = k as f64 * h;
+            let w = if k == 0 || k == n {
+                1.0
+            } else if k % 2 == 1 {
+                4.0
+            } else {
+                2.0
+            };
+            w * falloff(t) * t.sin()
+        })
+        .sum::<f64>()
+        * h
+        / 3.0;
+    let v = |x: f64, y: f64, z: f64| [x, y, z];
+    let expected = [
+        v(PI * 4.0, PI * 8.0, PI * 12.0),
+        v(4.0 * PI * 3.0, 4.0 * PI * 3.0, 4.0 * PI * 6.0),
+        [2.0 * PI * 2.0 * simpson; 3],
+        v(PI * 3.0 * 0.5 * 4.0, PI * 3.0 * 4.0, PI * 3.0 * 1.5 * 4.0),
+        [PI * r * r * 1.5; 3],
+        v(
+            4.0 * PI * PI * r * r * 0.5,
+            4.0 * PI * PI * r * r,
+            4.0 * PI * PI * r * r * 1.5,
+        ),
+    ];
+    assert_eq!(s.emitters.len(), expected.len());
+    let z_crit = normal_critical_z(sidak(0.01, 3 * expected.len()));
+    for (i, (e, want)) in s.emitters.iter().zip(expected).enumerate() {
+        let n = 400_000;
+        let (mut sum, mut sum_sq) = ([0.0f64; 3], [0.0f64; 3]);
+        let mut rng = SampleStream::new(0xe41, i as u64, 0);
+        for _ in 0..n {
+            let Some(er) = e.sample_ray(rng.next_2d(), rng.next_2d(), &s.shapes, s.bounding_sphere)
+            else {
+                continue;
+            };
+            assert!(er.weight.is_finite(), "{e:?}: weight {}", er.weight);
+            assert!(
+                (er.ray.d.length() - 1.0).abs() < 1e-5,
+                "{e:?}: {:?}",
+                er.ray.d
+            );
+            if let Emitter::Directional(d) = e {
+                assert!((er.ray.d - d.direction).length() < 1e-5);
+            }
+            for c in 0..3 {
+                let w = er.weight[c] as f64;
+                sum[c] += w;
+                sum_sq[c] += w * w;
+            }
+        }
+        for c in 0..3 {
+            let mean = sum[c] / n as f64;
+            let var = (sum_sq[c] / n as f64 - mean * mean).max(0.0);
+            // (a constant weight has no variance: allow f32 rounding)
+            let se = (var / n as f64).sqrt().max(1e-6 * want[c]);
+            let z = (mean - want[c]).abs() / se;
+            assert!(
+                z < z_crit,
+                "{e:?} channel {c}: mean weight {mean}, power {} (z = {z})",
+                want[c]
+            );
+        }
+    }
+}

@@ -92,6 +92,27 @@ pub enum Bsdf {
 }
 
 impl Bsdf {
+    /// The factor that turns this BSDF's radiance-mode value for (wi, wo) into its
+    /// importance-mode one: η_it² where light refracts through an interface of relative IOR
+    /// η (η_it = η seen from the outside, 1/η from the inside), since radiance-mode
+    /// refraction carries the 1/η_it² of radiance's solid-angle compression (Veach 1997,
+    /// §5.2) and importance does not; 1 for reflection and for BSDFs that do not refract.
+    pub fn importance_scale(&self, wi: Vec3, wo: Vec3) -> f32 {
+        let eta = match self {
+            Bsdf::Dielectric(b) => b.eta,
+            Bsdf::RoughDielectric(b) => b.eta,
+            Bsdf::Principled(b) if b.bsdf > 0.0 => b.eta,
+            _ => return 1.0,
+        };
+        if wi.z * wo.z >= 0.0 {
+            1.0
+        } else if wi.z > 0.0 {
+            eta * eta
+        } else {
+            1.0 / (eta * eta)
+        }
+    }
+
     /// f(wi, wo) |cos θo|.
     pub fn eval(&self, wi: Vec3, wo: Vec3) -> Spectrum {
         match self {

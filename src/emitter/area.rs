@@ -13,10 +13,10 @@
 //! ([`ShapeGeometry::at_uv`]), p_A = p_uv / |∂p/∂u × ∂p/∂v|, with the geometric normal for the
 //! solid-angle conversion.
 
-use super::DirectionSample;
+use super::{DirectionSample, EmitterPosition, EmitterRay};
 use crate::bsdf::Spectrum;
-use crate::geometry::Frame;
-use crate::sampling::square_to_uniform_cone;
+use crate::geometry::{offset_ray_origin, Frame, Ray};
+use crate::sampling::{square_to_cosine_hemisphere, square_to_uniform_cone};
 use crate::shape::{Shape, ShapeGeometry, Sphere, SurfaceInteraction, UvGrid};
 use crate::texture::{Texture, TextureContext};
 use glam::{DVec3, Vec2, Vec3};
@@ -222,6 +222,56 @@ impl AreaEmitter {
             pdf,
             radiance,
             delta: false,
+        })
+    }
+
+    /// A point on the emitter: uniform by area for a constant radiance, by the texture
+    /// mapped onto the shape otherwise (as [`AreaEmitter::sample_direction`] does).
+    pub fn sample_position(&self, u: Vec2, shapes: &[Shape]) -> Option<EmitterPosition> {
+        let geometry = &shapes[self.shape as usize].geometry;
+        let pos = match &self.radiance {
+            Texture::Constant { rgb, .. } => {
+                let ps = geometry.sample_position(u)?;
+                EmitterPosition {
+                    p: ps.p,
+                    p_error: ps.p_error,
+                    n: ps.n,
+                    ng: ps.n,
+                    radiance: *rgb,
+                    pdf: ps.pdf,
+                }
+            }
+            _ => {
+                let (uv, pdf_uv) = self.radiance.sample_position(u);
+                let si = geometry.at_uv(uv, self.uv_grid.as_ref(), self.shape)?;
+                let jacobian = si.dp_du.cross(si.dp_dv).length();
+                EmitterPosition {
+                    p: si.p,
+                    p_error: si.p_error,
+                    n: si.frame.n,
+                    ng: si.ng,
+                    radiance: self.radiance.eval(&texture_context(&si, geometry)),
+                    pdf: pdf_uv / jacobian,
+                }
+            }
+        };
+        (pos.pdf.is_finite() && pos.pdf > 0.0).then_some(pos)
+    }
+
+    /// A ray leaving the emitter: a point by [`AreaEmitter::sample_position`] and a
+    /// cosine-weighted direction on its emitting side, weight L π / p_A.
+    pub fn sample_ray(&self, u_pos: Vec2, u_dir: Vec2, shapes: &[Shape]) -> Option<EmitterRay> {
+        let pos = self.sample_position(u_pos, shapes)?;
+        let d = Frame::from_normal(pos.n)
+            .to_world(square_to_cosine_hemisphere(u_dir))
+            .normalize();
+        Some(EmitterRay {
+            ray: Ray::new(
+                offset_ray_origin(pos.p, pos.p_error, pos.ng, d),
+                d,
+                f32::INFINITY,
+            ),
+            weight: pos.radiance * (std::f32::consts::PI / pos.pdf),
         })
     }
 

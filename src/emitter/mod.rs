@@ -20,8 +20,44 @@ pub use projector::ProjectorEmitter;
 pub use spot::SpotEmitter;
 
 use crate::bsdf::Spectrum;
+use crate::geometry::{Frame, Ray};
+use crate::sampling::square_to_uniform_disk_concentric;
 use crate::shape::Shape;
 use glam::{Vec2, Vec3};
+
+/// A ray leaving an emitter, for light tracing (Mitsuba's `Emitter::sample_ray`): the ray
+/// and its weight, emitted radiance times the ray's measurement over its density (for a
+/// ray drawn with density p(x, ω) in area and solid angle: L cos θ / p). The mean weight is
+/// the emitted power.
+#[derive(Clone, Copy, Debug)]
+pub struct EmitterRay {
+    pub ray: Ray,
+    pub weight: Spectrum,
+}
+
+/// A point drawn on an area emitter, for connecting the emitter itself to the camera.
+#[derive(Clone, Copy, Debug)]
+pub struct EmitterPosition {
+    pub p: Vec3,
+    pub p_error: Vec3,
+    /// The emitting side's unit normal (the shading normal).
+    pub n: Vec3,
+    /// The geometric normal (offsets rays off the surface).
+    pub ng: Vec3,
+    /// Radiance leaving the front side at `p`.
+    pub radiance: Spectrum,
+    /// Area density of `p`.
+    pub pdf: f32,
+}
+
+/// A ray entering the scene from infinity along unit direction `d`: it starts on the disk
+/// of radius r perpendicular to `d`, tangent to the scene's bounding sphere (centre c,
+/// radius r) on the side it comes from, at the point `u` picks uniformly (density 1/(π r²)).
+fn ray_from_infinity(d: Vec3, u: Vec2, (c, r): (Vec3, f32)) -> Ray {
+    let frame = Frame::from_normal(d);
+    let q = square_to_uniform_disk_concentric(u) * r;
+    Ray::new(c - d * r + frame.s * q.x + frame.t * q.y, d, f32::INFINITY)
+}
 
 /// A direction towards a sampled point on an emitter, as seen from a reference point.
 #[derive(Clone, Copy, Debug)]
@@ -96,6 +132,62 @@ impl Emitter {
             Emitter::Constant(e) => e.sample_direction(u),
             Emitter::EnvMap(e) => e.sample_direction(u),
         }
+    }
+
+    /// A ray leaving the emitter, drawn from `u_pos` (its origin) and `u_dir` (its direction);
+    /// emitters at infinity start their rays on a disk tangent to the scene's bounding
+    /// sphere `bounds` (centre, radius). `None` when the sample carries no light.
+    pub fn sample_ray(
+        &self,
+        u_pos: Vec2,
+        u_dir: Vec2,
+        shapes: &[Shape],
+        bounds: (Vec3, f32),
+    ) -> Option<EmitterRay> {
+        let disk = std::f32::consts::PI * bounds.1 * bounds.1;
+        let r = match self {
+            Emitter::Area(e) => e.sample_ray(u_pos, u_dir, shapes)?,
+            Emitter::Point(e) => e.sample_ray(u_dir),
+            Emitter::Spot(e) => e.sample_ray(u_dir)?,
+            Emitter::Projector(e) => e.sample_ray(u_dir)?,
+            Emitter::Directional(e) => EmitterRay {
+                ray: ray_from_infinity(e.direction, u_pos, bounds),
+                weight: e.irradiance * disk,
+            },
+            Emitter::Constant(e) => {
+                let d = crate::sampling::square_to_uniform_sphere(u_dir);
+                EmitterRay {
+                    ray: ray_from_infinity(-d, u_pos, bounds),
+                    weight: e.radiance * (disk / constant::UNIFORM_SPHERE_PDF),
+                }
+            }
+            Emitter::EnvMap(e) => {
+                let ds = e.sample_direction(u_dir)?;
+                EmitterRay {
+                    ray: ray_from_infinity(-ds.d, u_pos, bounds),
+                    weight: ds.radiance * (disk / ds.pdf),
+                }
+            }
+        };
+        (r.weight.is_finite() && r.weight.max_element() > 0.0).then_some(r)
+    }
+
+    /// A point on an area emitter (`None` for every other kind), for connecting the
+    /// emitter to the camera.
+    pub fn sample_position(&self, u: Vec2, shapes: &[Shape]) -> Option<EmitterPosition> {
+        match self {
+            Emitter::Area(e) => e.sample_position(u, shapes),
+            _ => None,
+        }
+    }
+
+    /// A Dirac delta in position or direction (point, spot, projector, directional): no
+    /// camera ray or light-path connection can reach it.
+    pub fn is_delta(&self) -> bool {
+        matches!(
+            self,
+            Emitter::Point(_) | Emitter::Spot(_) | Emitter::Projector(_) | Emitter::Directional(_)
+        )
     }
 
     /// An environment emitter: seen by rays that leave the scene.

@@ -1,9 +1,11 @@
 //! Mitsuba's `point` emitter: an isotropic point light of radiant intensity I (W/sr), seen
 //! from a point at distance r with irradiance I / r² (a Dirac delta in position).
 
-use super::DirectionSample;
+use super::{DirectionSample, EmitterRay};
 use crate::bsdf::Spectrum;
-use glam::Vec3;
+use crate::geometry::Ray;
+use crate::sampling::square_to_uniform_sphere;
+use glam::{Vec2, Vec3};
 
 #[derive(Clone, Debug)]
 pub struct PointEmitter {
@@ -25,5 +27,13 @@ impl PointEmitter {
             dist,
             self.intensity / dist2,
         ))
+    }
+
+    /// A ray in a uniformly drawn direction, weight 4π I.
+    pub fn sample_ray(&self, u: Vec2) -> EmitterRay {
+        EmitterRay {
+            ray: Ray::new(self.position, square_to_uniform_sphere(u), f32::INFINITY),
+            weight: self.intensity * (4.0 * std::f32::consts::PI),
+        }
     }
 }

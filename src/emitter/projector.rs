@@ -19,7 +19,8 @@
 //! | `fov`, `fov_axis` / `focal_length` | 50mm | as Mitsuba's perspective sensor |
 //! | `to_world` | identity | projects along local +z |
 
-use super::DirectionSample;
+use super::{DirectionSample, EmitterRay};
+use crate::geometry::Ray;
 use crate::texture::{Texture, TextureContext};
 use glam::{DMat4, DVec3, Mat4, Vec2, Vec3};
 
@@ -28,6 +29,7 @@ pub struct ProjectorEmitter {
     position: Vec3,
     /// World to local (the inverse of `to_world`).
     to_local: Mat4,
+    to_world: Mat4,
     /// `to_world` applied to the local +z axis (not normalised, as Mitsuba uses it).
     axis: Vec3,
     irradiance: Texture,
@@ -54,6 +56,7 @@ impl ProjectorEmitter {
         Some(ProjectorEmitter {
             position: to_world.transform_point3(DVec3::ZERO).as_vec3(),
             to_local: to_world.inverse().as_mat4(),
+            to_world: to_world.as_mat4(),
             axis: to_world.transform_vector3(DVec3::Z).as_vec3(),
             irradiance,
             scale: scale as f32,
@@ -71,6 +74,31 @@ impl ProjectorEmitter {
     /// Mean irradiance over the image (for the power estimate).
     pub fn mean_irradiance(&self) -> f64 {
         self.irradiance.mean() as f64 * self.scale as f64
+    }
+
+    /// A ray through an image position drawn in proportion to the irradiance texture
+    /// (density p_uv): the local direction (x, y, 1) with x = (1 − 2u) t, y = (1 − 2v) t / a
+    /// spans the image rectangle of area A at distance 1, dω = A cos³θ du dv, and the
+    /// intensity there is π · scale · E(uv) / cos³θ, so the weight is π · scale · E(uv) · A
+    /// / p_uv (as Mitsuba's `sample_ray`).
+    pub fn sample_ray(&self, u: Vec2) -> Option<EmitterRay> {
+        let (uv, pdf) = self.irradiance.sample_position(u);
+        if !(pdf > 0.0 && pdf.is_finite()) {
+            return None;
+        }
+        let t = 1.0 / self.cot_half_fov;
+        let local = Vec3::new(
+            (1.0 - 2.0 * uv.x) * t,
+            (1.0 - 2.0 * uv.y) * t / self.aspect,
+            1.0,
+        );
+        let d = self.to_world.transform_vector3(local).normalize();
+        let e = self.irradiance.eval(&TextureContext::at_uv(uv));
+        let area = self.image_area() as f32;
+        Some(EmitterRay {
+            ray: Ray::new(self.position, d, f32::INFINITY),
+            weight: e * (std::f32::consts::PI * self.scale * area / pdf),
+        })
     }
 
     pub fn sample_direction(&self, p_ref: Vec3) -> Option<DirectionSample> {

@@ -13,8 +13,10 @@
 //! | `beam_width` | ¾ cutoff_angle | |
 //! | `to_world` | identity | the light looks down local +z |
 
-use super::DirectionSample;
+use super::{DirectionSample, EmitterRay};
 use crate::bsdf::Spectrum;
+use crate::geometry::Ray;
+use crate::sampling::square_to_uniform_cone;
 use crate::texture::{Texture, TextureContext};
 use glam::{DMat3, DMat4, DVec3, Mat3, Vec2, Vec3};
 
@@ -24,6 +26,8 @@ pub struct SpotEmitter {
     /// World to local directions: the inverse of `to_world`'s linear part (Mitsuba applies
     /// the whole inverse transform, so a scaled frame changes the cone as it does there).
     to_local: Mat3,
+    /// Local to world directions (`to_world`'s linear part).
+    to_world: Mat3,
     pub intensity: Spectrum,
     cutoff_angle: f32,
     cos_cutoff: f32,
@@ -53,6 +57,7 @@ impl SpotEmitter {
         Some(SpotEmitter {
             position: to_world.transform_point3(DVec3::ZERO).as_vec3(),
             to_local: linear.inverse().as_mat3(),
+            to_world: linear.as_mat3(),
             intensity,
             cutoff_angle: cutoff as f32,
             cos_cutoff: cutoff.cos() as f32,
@@ -94,6 +99,22 @@ impl SpotEmitter {
             0.5 + 0.5 * d.x / (d.z * self.uv_factor),
             0.5 + 0.5 * d.y / (d.z * self.uv_factor),
         )
+    }
+
+    /// A ray in a direction drawn uniformly within the cutoff cone (as Mitsuba's
+    /// `sample_ray`), weight I · falloff · texture / p_ω.
+    pub fn sample_ray(&self, u: Vec2) -> Option<EmitterRay> {
+        let local = square_to_uniform_cone(u, self.cos_cutoff);
+        let pdf = 1.0 / (2.0 * std::f32::consts::PI * (1.0 - self.cos_cutoff));
+        let mut weight = self.intensity * (self.falloff(local) / pdf);
+        if let Some(t) = &self.texture {
+            weight *= t.eval(&TextureContext::at_uv(self.direction_to_uv(local)));
+        }
+        let d = (self.to_world * local).normalize();
+        Some(EmitterRay {
+            ray: Ray::new(self.position, d, f32::INFINITY),
+            weight,
+        })
     }
 
     pub fn sample_direction(&self, p_ref: Vec3) -> Option<DirectionSample> {

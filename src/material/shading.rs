@@ -47,6 +47,8 @@ pub enum Node {
 #[derive(Clone, Debug)]
 pub struct ShadingBsdf {
     nodes: ArrayVec<Node, MAX_NODES>,
+    /// Importance transport ([`ShadingBsdf::importance`]); radiance when false.
+    importance: bool,
 }
 
 impl Default for ShadingBsdf {
@@ -59,6 +61,7 @@ impl ShadingBsdf {
     pub fn new() -> Self {
         ShadingBsdf {
             nodes: ArrayVec::new(),
+            importance: false,
         }
     }
 
@@ -117,6 +120,17 @@ impl ShadingBsdf {
         self.sample_node(0, wi, u1, u2)
     }
 
+    /// The same BSDF in importance transport mode (Mitsuba's `TransportMode::Importance`,
+    /// pbrt's `TransportMode::Importance`), for light tracing: `wi` then points to where the
+    /// light came from and `wo` onwards, and refraction does not scale the transported
+    /// quantity by 1/η² as it scales radiance (Veach 1997, §5.2): eval and sample weights of
+    /// refracting lobes are those of radiance mode times η_it², η_it the relative IOR seen
+    /// from `wi`'s side ([`Bsdf::importance_scale`]). Directions and densities are unchanged.
+    pub fn importance(mut self) -> Self {
+        self.importance = true;
+        self
+    }
+
     /// Whether the BSDF has a non-delta lobe for `wi` (emitter sampling is useful).
     pub fn has_smooth_lobe(&self, wi: Vec3) -> bool {
         self.smooth_node(0, wi)
@@ -167,6 +181,7 @@ impl ShadingBsdf {
 
     pub(crate) fn eval_node(&self, i: u8, wi: Vec3, wo: Vec3) -> Spectrum {
         match self.node(i) {
+            Node::Leaf(b) if self.importance => b.eval(wi, wo) * b.importance_scale(wi, wo),
             Node::Leaf(b) => b.eval(wi, wo),
             Node::TwoSided { front, back } => twosided::eval(self, *front, *back, wi, wo),
             Node::Mask { opacity, nested } => mask::eval(self, *opacity, *nested, wi, wo),
@@ -195,6 +210,11 @@ impl ShadingBsdf {
 
     pub(crate) fn sample_node(&self, i: u8, wi: Vec3, u1: f32, u2: Vec2) -> Option<BsdfSample> {
         match self.node(i) {
+            Node::Leaf(b) if self.importance => {
+                let mut bs = b.sample(wi, u1, u2)?;
+                bs.weight *= b.importance_scale(wi, bs.wo);
+                Some(bs)
+            }
             Node::Leaf(b) => b.sample(wi, u1, u2),
             Node::TwoSided { front, back } => twosided::sample(self, *front, *back, wi, u1, u2),
             Node::Mask { opacity, nested } => mask::sample(self, *opacity, *nested, wi, u1, u2),
