@@ -315,6 +315,65 @@ impl Film {
         }
     }
 
+    /// Adds one pass of a light tracer: `pass` holds, per pixel, the sum of the splats of
+    /// `width · height` particles, which is one sample of that pixel (weight 1, as a
+    /// box-filtered camera sample), so that the image, the per-pixel variance and the sample
+    /// count mean what they mean for camera integrators.
+    pub fn add_light_pass(&mut self, pass: &[[f64; 3]]) {
+        self.samples += (self.width * self.height) as u64;
+        for (i, v) in pass.iter().enumerate().take(self.sum.len()) {
+            for (c, &x) in v.iter().enumerate() {
+                self.sum[i][c] += x;
+                self.sum_sq[i][c] += x * x;
+                self.sum_w2[i][c] += x;
+                self.sum_sq_w2[i][c] += x * x;
+            }
+            self.weight[i] += 1.0;
+            self.weight_sq[i] += 1.0;
+            self.weight_cube[i] += 1.0;
+        }
+    }
+
+    /// Spreads a light tracer's splat of value `v` at film position `pos` (pixels) over the
+    /// pixels of `pass` (this film's size) with the reconstruction filter's weights
+    /// normalised to sum to 1 over its footprint (Mitsuba's normalised `ImageBlock::put`);
+    /// the parts that fall outside the image are lost.
+    pub fn splat(&self, pass: &mut [[f64; 3]], pos: Vec2, v: Vec3) {
+        let (w, h) = (self.width as i64, self.height as i64);
+        let mut put = |x: i64, y: i64, wt: f64| {
+            if x >= 0 && y >= 0 && x < w && y < h {
+                let p = &mut pass[(x + y * w) as usize];
+                for c in 0..3 {
+                    p[c] += wt * v[c] as f64;
+                }
+            }
+        };
+        if self.filter == Filter::Box {
+            put(pos.x.floor() as i64, pos.y.floor() as i64, 1.0);
+            return;
+        }
+        let r = self.filter.radius();
+        let axis = |p: f64| {
+            let first = (p - 0.5 - r).floor() as i64 + 1;
+            let last = (p - 0.5 + r).ceil() as i64 - 1;
+            (first..=last).map(move |i| {
+                let d = (i as f64 + 0.5 - p).abs();
+                (i, if d < r { self.filter.eval(d) } else { 0.0 })
+            })
+        };
+        let (px, py) = (pos.x as f64, pos.y as f64);
+        let total: f64 =
+            axis(px).map(|(_, w)| w).sum::<f64>() * axis(py).map(|(_, w)| w).sum::<f64>();
+        if total <= 0.0 {
+            return;
+        }
+        for (y, wy) in axis(py) {
+            for (x, wx) in axis(px) {
+                put(x, y, wx * wy / total);
+            }
+        }
+    }
+
     /// The reconstructed image: weighted mean per pixel (0 where no weight landed).
     pub fn image(&self) -> Vec<[f32; 3]> {
         (0..self.sum.len())

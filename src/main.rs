@@ -117,6 +117,10 @@ struct RenderArgs {
     /// Set a scene parameter declared with <default name=...>, like Mitsuba's -D.
     #[arg(short = 'D', value_name = "NAME=VALUE")]
     define: Vec<String>,
+    /// Render with this integrator instead of the scene's: `ptracer` (light tracing) or
+    /// `path`, with the scene integrator's max_depth, rr_depth and hide_emitters.
+    #[arg(long, value_name = "NAME")]
+    integrator: Option<String>,
     /// Worker threads (default: one per core).
     #[arg(long)]
     threads: Option<usize>,
@@ -247,6 +251,9 @@ fn run_render(args: RenderArgs) -> Result<()> {
     let desc = Scene::load_description(&args.scene, &defines)?;
     let scene_hash = progressive::scene_hash(&desc);
     let mut scene = penumbra::scene::build::build(&desc)?;
+    if let Some(kind) = &args.integrator {
+        scene.use_integrator(kind)?;
+    }
     for w in &scene.warnings {
         eprintln!("warning: {w}");
     }

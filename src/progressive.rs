@@ -126,7 +126,21 @@ pub fn render_progressive(
     resume: Option<Checkpoint>,
     on_pass: &(dyn Fn(&Progress) + Sync),
 ) -> Result<(Progress, StopReason)> {
-    let pass = pass_spp(scene.width, scene.height);
+    // SPPM's iterations depend on each other (radii, photon counts): one pass of all of
+    // them, which cannot be resumed.
+    let sppm = matches!(scene.integrator, crate::integrator::Integrator::Sppm(_));
+    let pass = if sppm {
+        settings.spp.max(1)
+    } else {
+        pass_spp(scene.width, scene.height)
+    };
+    if sppm && resume.is_some() {
+        return Err(Error::Invalid(
+            "an sppm render cannot be resumed (its per-pixel radii and photon counts are not \
+             checkpointed)"
+                .into(),
+        ));
+    }
     let mut progress = match resume {
         Some(c) => {
             c.check_matches(scene, settings, pass)?;

@@ -5,7 +5,8 @@
 
 use crate::error::{Error, Result};
 use crate::film::{Film, FilmTile};
-use crate::integrator::PathStats;
+use crate::integrator::ptracer::Splat;
+use crate::integrator::{Integrator, ParticleTracer, PathStats};
 use crate::scene::Scene;
 use glam::Vec2;
 use rayon::prelude::*;
@@ -119,6 +120,13 @@ pub fn render(
     let pool = builder
         .build()
         .map_err(|e| Error::Invalid(format!("cannot start worker threads: {e}")))?;
+    match &scene.integrator {
+        Integrator::ParticleTracer(pt) => {
+            return Ok(render_particles(scene, pt, settings, &pool, progress))
+        }
+        Integrator::Sppm(sppm) => return sppm.render(scene, settings, &pool, progress),
+        _ => {}
+    }
     let tiles: Vec<(usize, usize)> = (0..scene.height)
         .step_by(TILE_SIZE)
         .flat_map(|y| (0..scene.width).step_by(TILE_SIZE).map(move |x| (x, y)))
@@ -151,4 +159,89 @@ pub fn render(
         stats.nonfinite += r.nonfinite;
     }
     Ok(RenderOutput { film, stats })
+}
+
+/// Light tracing's work item: the particles of sample `s` of one image row (one particle per
+/// pixel, each drawing from the sample stream of (seed, pixel, sample) as a camera sample
+/// would).
+struct ParticleRow {
+    splats: Vec<Splat>,
+    stats: PathStats,
+}
+
+/// Work items traced in parallel before their splats are added, in order, to the film.
+const PARTICLE_BATCH: usize = 256;
+
+/// Renders a light tracer: `spp · width · height` particles. The splats of sample s of all
+/// pixels form one pass, added to the film as one sample per pixel
+/// ([`Film::add_light_pass`]). Rows are traced in parallel and their splats added in a
+/// fixed order (sample, row, particle), so the image is bit-identical for any thread count.
+fn render_particles(
+    scene: &Scene,
+    pt: &ParticleTracer,
+    settings: &RenderSettings,
+    pool: &rayon::ThreadPool,
+    progress: &(dyn Fn(u64, u64) + Sync),
+) -> RenderOutput {
+    let (w, h) = (scene.width, scene.height);
+    let spp = settings.spp as usize;
+    let sampler = settings.sampler.unwrap_or(scene.sampler);
+    let size = (w as u32, h as u32);
+    let res = Vec2::new(w as f32, h as f32);
+    let total = (w * h) as u64 * settings.spp as u64;
+    let start = Instant::now();
+    let mut film = Film::new(w, h, scene.filter);
+    let mut pass = vec![[0.0f64; 3]; w * h];
+    let mut stats = RenderStats {
+        paths: total,
+        ..Default::default()
+    };
+    let items = spp * h;
+    let mut done = 0u64;
+    for batch in (0..items).step_by(PARTICLE_BATCH) {
+        let end = (batch + PARTICLE_BATCH).min(items);
+        let rows: Vec<ParticleRow> = pool.install(|| {
+            (batch..end)
+                .into_par_iter()
+                .map(|k| {
+                    let (s, y) = (k / h, k % h);
+                    let mut row = ParticleRow {
+                        splats: Vec::new(),
+                        stats: PathStats::default(),
+                    };
+                    for x in 0..w {
+                        let mut stream = sampler.stream(
+                            settings.seed,
+                            (x as u32, y as u32),
+                            size,
+                            settings.first_sample + s as u64,
+                        );
+                        pt.trace(scene, &mut stream, &mut row.stats, &mut row.splats);
+                    }
+                    row
+                })
+                .collect()
+        });
+        for (k, row) in (batch..end).zip(rows) {
+            if k > 0 && k % h == 0 {
+                film.add_light_pass(&pass);
+                pass.iter_mut().for_each(|p| *p = [0.0; 3]);
+            }
+            stats.path += row.stats;
+            for sp in &row.splats {
+                if sp.value.is_finite() {
+                    film.splat(&mut pass, sp.film * res, sp.value);
+                } else {
+                    stats.nonfinite += 1;
+                }
+            }
+        }
+        done += ((end - batch) * w) as u64;
+        progress(done, total);
+    }
+    if spp > 0 {
+        film.add_light_pass(&pass);
+    }
+    stats.seconds = start.elapsed().as_secs_f64();
+    RenderOutput { film, stats }
 }

@@ -4,30 +4,22 @@
 //! pixel-channels passing.
 //!
 //! Every scene of the suite is run and reported (pass, fail, or the first unsupported
-//! construct, printed with `--nocapture`). Every scene must pass but the particle tracer's
-//! (listed in [`NOT_YET`], which needs light tracing); it must fail to load with a single
-//! line naming what penumbra does not support.
+//! construct, printed with `--nocapture`), and every scene must pass: the 12 participating
+//! media scenes (volpath, volpathmis) and the particle tracer's (`ptracer`) included.
 
 use penumbra::study::suite::{self, Outcome};
 use std::path::Path;
-
-/// Scenes penumbra cannot render yet: scene-name prefixes.
-const NOT_YET: &[&str] = &["various_emitters/test_various_emitters_ptracer"];
-
-fn expected_to_pass(name: &str) -> bool {
-    !NOT_YET.iter().any(|p| name.starts_with(p))
-}
 
 #[test]
 fn mitsuba_regression_suite() {
     let root = Path::new(env!("CARGO_MANIFEST_DIR")).join("validation/mitsuba-suite");
     let scenes = suite::discover(&root).expect("the suite is in the repository");
     assert_eq!(scenes.len(), 41, "Mitsuba's suite has 41 scenes");
-    let supported = scenes.iter().filter(|s| expected_to_pass(&s.name)).count();
-    assert_eq!(
-        supported, 40,
-        "all but the particle tracer's scene must pass"
-    );
+    let ptracer = scenes
+        .iter()
+        .filter(|s| s.name.ends_with("_ptracer"))
+        .count();
+    assert_eq!(ptracer, 1, "the suite has one particle-tracer scene");
     let media = scenes
         .iter()
         .filter(|s| s.name.starts_with("participating_media/"))
@@ -44,7 +36,7 @@ fn mitsuba_regression_suite() {
                     j.spp,
                     j.seconds
                 );
-                if expected_to_pass(&s.name) && !j.passed {
+                if !j.passed {
                     failures.push(format!(
                         "{} fails Mitsuba's test: {:.2}% of pixel-channels pass",
                         s.name,
@@ -54,12 +46,7 @@ fn mitsuba_regression_suite() {
             }
             Outcome::Unsupported(e) => {
                 println!("{:<62} unsupported: {e}", s.name);
-                if expected_to_pass(&s.name) {
-                    failures.push(format!("{} no longer loads: {e}", s.name));
-                }
-                if e.contains('\n') || e.is_empty() {
-                    failures.push(format!("{}: the error is not one line: {e:?}", s.name));
-                }
+                failures.push(format!("{} does not load: {e}", s.name));
             }
         }
     }

@@ -3,11 +3,15 @@
 
 pub mod direct;
 pub mod path;
+pub mod ptracer;
+pub mod sppm;
 pub mod volpath;
 pub mod volpathmis;
 
 pub use direct::DirectIntegrator;
 pub use path::PathIntegrator;
+pub use ptracer::ParticleTracer;
+pub use sppm::Sppm;
 pub use volpath::VolPathIntegrator;
 pub use volpathmis::VolPathMisIntegrator;
 
@@ -45,6 +49,12 @@ pub enum Integrator {
     Direct(DirectIntegrator),
     VolPath(VolPathIntegrator),
     VolPathMis(VolPathMisIntegrator),
+    /// Light tracing: not an estimator of camera-ray radiance, so [`Integrator::li`] does
+    /// not apply; the render driver traces particles instead (`render::render`).
+    ParticleTracer(ParticleTracer),
+    /// Stochastic progressive photon mapping: like the particle tracer, rendered by the
+    /// driver as a whole ([`Sppm::render`]).
+    Sppm(Sppm),
 }
 
 impl Integrator {
@@ -61,6 +71,8 @@ impl Integrator {
             Integrator::Direct(d) => d.li(scene, ray, sampler, stats),
             Integrator::VolPath(v) => v.li(scene, ray, sampler, stats),
             Integrator::VolPathMis(v) => v.li(scene, ray, sampler, stats),
+            // The render driver never asks a light tracer for camera-ray radiance.
+            Integrator::ParticleTracer(_) | Integrator::Sppm(_) => Spectrum::ZERO,
         }
     }
 }

@@ -10,7 +10,7 @@ pub mod xml;
 use crate::accel::Accel;
 use crate::camera::Camera;
 use crate::emitter::{DirectionSample, Emitter};
-use crate::error::Result;
+use crate::error::{Error, Result};
 use crate::film::Filter;
 use crate::geometry::{offset_ray_origin, Ray, SHADOW_EPSILON};
 use crate::integrator::Integrator;
@@ -83,6 +83,65 @@ impl Scene {
         let doc = xml::load_str(text, path, defines)?;
         let desc = description::from_xml(&doc)?;
         build::build(&desc)
+    }
+
+    /// Replaces the integrator by `kind`, which takes the current one's `max_depth`,
+    /// `rr_depth` and `hide_emitters`: `path`, `ptracer` (light tracing) or `sppm` (photon
+    /// mapping with its defaults: one photon per pixel per iteration, automatic radius,
+    /// α = 2/3). For rendering a
+    /// scene written for the path tracer with a light-path integrator (the validation
+    /// study's light-tracing entries, `penumbra render --integrator`).
+    pub fn use_integrator(&mut self, kind: &str) -> Result<()> {
+        use crate::integrator::{Integrator, ParticleTracer, PathIntegrator};
+        let (max_depth, rr_depth, hide_emitters) = match &self.integrator {
+            Integrator::Path(p) => (p.max_depth, p.rr_depth, p.hide_emitters),
+            Integrator::VolPath(p) => (p.max_depth, p.rr_depth, p.hide_emitters),
+            Integrator::VolPathMis(p) => (p.max_depth, p.rr_depth, p.hide_emitters),
+            Integrator::ParticleTracer(p) => (p.max_depth, p.rr_depth, p.hide_emitters),
+            Integrator::Sppm(p) => (p.max_depth, 5, false),
+            Integrator::Direct(d) => (2, 5, d.hide_emitters),
+        };
+        self.integrator = match kind {
+            "path" => Integrator::Path(PathIntegrator {
+                max_depth,
+                rr_depth,
+                hide_emitters,
+            }),
+            "ptracer" => {
+                crate::integrator::ptracer::check_scene(
+                    "ptracer",
+                    true,
+                    &self.camera,
+                    !self.media.is_empty(),
+                )?;
+                Integrator::ParticleTracer(ParticleTracer {
+                    max_depth,
+                    rr_depth,
+                    hide_emitters,
+                    samples_per_pass: None,
+                })
+            }
+            "sppm" => {
+                crate::integrator::ptracer::check_scene(
+                    "sppm",
+                    false,
+                    &self.camera,
+                    !self.media.is_empty(),
+                )?;
+                Integrator::Sppm(crate::integrator::Sppm {
+                    max_depth,
+                    photon_count: (self.width * self.height) as u64,
+                    initial_radius: 0.0,
+                    alpha: 2.0 / 3.0,
+                })
+            }
+            _ => {
+                return Err(Error::Invalid(format!(
+                    "unknown integrator '{kind}' (expected path, ptracer or sppm)"
+                )))
+            }
+        };
+        Ok(())
     }
 
     /// The closest surface hit by `ray`.

@@ -84,6 +84,12 @@ pub struct ValidationScene {
     /// `feature`.
     #[serde(default)]
     pub mitsuba_integrator: Option<String>,
+    /// For penumbra only: the integrator it renders with instead of the scene's (a light
+    /// path integrator, `ptracer`, checked against the scene's path-traced reference; it
+    /// takes the scene integrator's max_depth, rr_depth and hide_emitters). Such an entry
+    /// shares its reference with the scene's own entry.
+    #[serde(default)]
+    pub integrator: Option<String>,
 }
 
 #[derive(Deserialize)]
@@ -198,7 +204,11 @@ impl ValidationScene {
     }
 
     pub fn load_scene(&self, root: &Path) -> Result<Scene> {
-        Scene::load(&root.join(&self.file), &self.defines_vec())
+        let mut scene = Scene::load(&root.join(&self.file), &self.defines_vec())?;
+        if let Some(kind) = &self.integrator {
+            scene.use_integrator(kind)?;
+        }
+        Ok(scene)
     }
 
     /// Reads the reference and checks that it is the one the list asks for.

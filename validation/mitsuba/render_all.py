@@ -90,7 +90,7 @@ def main(argv=None):
     if unknown:
         raise SystemExit(f"unknown scene(s) {unknown}; known: {sorted(by_name)}")
     todo = [by_name[n] for n in args.scene] if args.scene else \
-        [s for s in scenes if s["status"] == "landed"]
+        [s for s in scenes if s["status"] == "landed" and "integrator" not in s]
 
     manifest = {}
     if os.path.exists(MANIFEST):

@@ -22,7 +22,8 @@ use crate::emitter::{
 use crate::error::{Error, Result};
 use crate::film::Filter;
 use crate::integrator::{
-    DirectIntegrator, Integrator, PathIntegrator, VolPathIntegrator, VolPathMisIntegrator,
+    DirectIntegrator, Integrator, ParticleTracer, PathIntegrator, Sppm, VolPathIntegrator,
+    VolPathMisIntegrator,
 };
 use crate::medium::{Heterogeneous, Homogeneous, Medium, MediumKind};
 use crate::phase::{HenyeyGreenstein, PhaseFunction};
@@ -207,6 +208,38 @@ pub fn build(desc: &SceneDescription) -> Result<Scene> {
             bsdf_samples,
             hide_emitters,
         )),
+        IntegratorDesc::Sppm {
+            max_depth,
+            photon_count,
+            initial_radius,
+            alpha,
+        } => {
+            crate::integrator::ptracer::check_scene("sppm", false, &camera, !media.is_empty())?;
+            Integrator::Sppm(Sppm {
+                max_depth: depth(max_depth),
+                photon_count: if photon_count == 0 {
+                    (width * height) as u64
+                } else {
+                    photon_count
+                },
+                initial_radius: initial_radius as f32,
+                alpha: alpha as f32,
+            })
+        }
+        IntegratorDesc::ParticleTracer {
+            max_depth,
+            rr_depth,
+            hide_emitters,
+            samples_per_pass,
+        } => {
+            crate::integrator::ptracer::check_scene("ptracer", true, &camera, !media.is_empty())?;
+            Integrator::ParticleTracer(ParticleTracer {
+                max_depth: depth(max_depth),
+                rr_depth: rr_depth.clamp(1, u32::MAX as i64) as u32,
+                hide_emitters,
+                samples_per_pass: (samples_per_pass > 0).then_some(samples_per_pass),
+            })
+        }
     };
     let (sampler, rounded) = Sampler::new(s.sampler.kind, s.sampler.sample_count);
     warnings.extend(rounded);

@@ -1,4 +1,4 @@
-//! Integrators: Mitsuba's `path`, `direct`, `volpath` and `volpathmis`, optionally wrapped
+//! Integrators: Mitsuba's `path`, `direct`, `volpath`, `volpathmis` and `ptracer`, and penumbra's `sppm`, optionally wrapped
 //! in `moment`.
 
 use super::*;
@@ -20,6 +20,22 @@ pub enum IntegratorDesc {
         rr_depth: i64,
         hide_emitters: bool,
         use_spectral_mis: bool,
+    },
+    /// Mitsuba's `ptracer` (particle tracing). `max_depth` −1 means unbounded;
+    /// `samples_per_pass` 0 when not given.
+    ParticleTracer {
+        max_depth: i64,
+        rr_depth: i64,
+        hide_emitters: bool,
+        samples_per_pass: u32,
+    },
+    /// Stochastic progressive photon mapping (penumbra's own; Mitsuba has none).
+    /// `photon_count` 0: one photon per pixel per iteration; `initial_radius` 0: automatic.
+    Sppm {
+        max_depth: i64,
+        photon_count: u64,
+        initial_radius: f64,
+        alpha: f64,
     },
     /// Mitsuba's `direct` integrator: `emitter_samples` and `bsdf_samples` per pixel sample
     /// (each defaulting to `shading_samples`, default 1), combined with the power heuristic.
@@ -107,6 +123,81 @@ pub(super) fn integrator_desc(o: &Object) -> Result<(IntegratorDesc, bool)> {
                     hide_emitters,
                     use_spectral_mis,
                 }
+            }
+        }
+        "ptracer" => {
+            let max_depth = p.int("max_depth", -1)?;
+            let rr_depth = p.int("rr_depth", 5)?;
+            let hide_emitters = p.boolean("hide_emitters", false)?;
+            let samples_per_pass = p.int("samples_per_pass", 0)?;
+            p.finish()?;
+            if max_depth < -1 {
+                return Err(Error::scene(
+                    &o.location,
+                    format!(
+                        "max_depth of {} must be -1 (unbounded) or >= 0, got {max_depth}",
+                        describe(o)
+                    ),
+                ));
+            }
+            if rr_depth <= 0 {
+                return Err(Error::scene(
+                    &o.location,
+                    format!("rr_depth of {} must be > 0, got {rr_depth}", describe(o)),
+                ));
+            }
+            if !(0..=u32::MAX as i64).contains(&samples_per_pass) {
+                return Err(Error::scene(
+                    &o.location,
+                    format!(
+                        "samples_per_pass of {} must be positive, got {samples_per_pass}",
+                        describe(o)
+                    ),
+                ));
+            }
+            IntegratorDesc::ParticleTracer {
+                max_depth,
+                rr_depth,
+                hide_emitters,
+                samples_per_pass: samples_per_pass as u32,
+            }
+        }
+        "sppm" => {
+            let max_depth = p.int("max_depth", -1)?;
+            let photon_count = p.int("photon_count", 0)?;
+            let initial_radius = p.float("initial_radius", 0.0)?;
+            let alpha = p.float("alpha", 2.0 / 3.0)?;
+            p.finish()?;
+            let bad = |msg: String| Err(Error::scene(&o.location, msg));
+            if max_depth < -1 {
+                return bad(format!(
+                    "max_depth of {} must be -1 (unbounded) or >= 0, got {max_depth}",
+                    describe(o)
+                ));
+            }
+            if !(0..=1 << 40).contains(&photon_count) {
+                return bad(format!(
+                    "photon_count of {} must be in [0, 2^40], got {photon_count}",
+                    describe(o)
+                ));
+            }
+            if !(initial_radius >= 0.0 && initial_radius.is_finite()) {
+                return bad(format!(
+                    "initial_radius of {} must be >= 0 (0: automatic), got {initial_radius}",
+                    describe(o)
+                ));
+            }
+            if !(alpha > 0.0 && alpha < 1.0) {
+                return bad(format!(
+                    "alpha of {} must be in (0, 1), got {alpha}",
+                    describe(o)
+                ));
+            }
+            IntegratorDesc::Sppm {
+                max_depth,
+                photon_count: photon_count as u64,
+                initial_radius,
+                alpha,
             }
         }
         "direct" => {

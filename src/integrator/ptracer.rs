@@ -1,0 +1,277 @@
+//! Mitsuba's `ptracer` integrator: particle (light) tracing. Paths start on the emitters and
+//! every surface vertex is connected to the camera's pinhole, adding its contribution to the
+//! pixel it lands in (Arvo and Kirk 1990, "Particle transport and image synthesis"; Veach
+//! 1997, §10.2 and §4.A; Mitsuba 3's `ptracer.cpp` for the semantics).
+//!
+//! One *particle* does what Mitsuba's `ParticleTracerIntegrator::sample` does:
+//! 1. unless `hide_emitters` (or `max_depth` 0), a point on an emitter picked uniformly is
+//!    connected to the camera: the emitters seen directly (area emitters by a point on their
+//!    surface, environments by a direction from the camera; delta emitters cannot be seen);
+//! 2. a ray leaves an emitter picked uniformly ([`Emitter::sample_ray`]); at every surface it
+//!    meets, the vertex is connected to the camera through the BSDF in importance mode
+//!    ([`ShadingBsdf::importance`]), then the path continues by BSDF sampling, with the
+//!    shading-normal correction of the adjoint BSDF (Veach 1997, §5.3) and Russian roulette
+//!    after `rr_depth` bounces (Mitsuba's `depth > rr_depth`, q = min(max(β) η², 0.95)).
+//!
+//! `max_depth` counts segments as for `path`: 1 shows only the emitters seen directly, 2
+//! adds direct illumination, and so on. A render of `spp` samples per pixel traces
+//! `spp · width · height` particles, each of weight 1/spp, so that the image is the same
+//! estimate of the same pixel integral as a camera integrator's (Mitsuba's `sample_scale`).
+//! Participating media are not supported, as in Mitsuba.
+//!
+//! [`Emitter::sample_ray`]: crate::emitter::Emitter::sample_ray
+//! [`ShadingBsdf::importance`]: crate::material::ShadingBsdf::importance
+
+use crate::bsdf::Spectrum;
+use crate::geometry::{offset_ray_origin, Ray, SHADOW_EPSILON};
+use crate::integrator::PathStats;
+use crate::sampler::SampleStream;
+use crate::scene::Scene;
+use glam::{Vec2, Vec3};
+
+#[derive(Clone, Debug)]
+pub struct ParticleTracer {
+    /// Longest path, in segments; `u32::MAX` for unbounded.
+    pub max_depth: u32,
+    pub rr_depth: u32,
+    /// Emitters seen directly are not shown.
+    pub hide_emitters: bool,
+    /// Mitsuba's `samples_per_pass`: how many samples per pixel one pass traces (`None`: all
+    /// of them in one pass). penumbra's renders already proceed in fixed-size batches, so
+    /// it only has to divide the sample count, as Mitsuba requires.
+    pub samples_per_pass: Option<u32>,
+}
+
+/// One contribution of a particle to the image.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Splat {
+    /// Film position in [0,1]² (x right, y down).
+    pub film: Vec2,
+    pub value: Spectrum,
+}
+
+/// The shadow ray from `p` (error `p_error`, geometric normal `ng`, zero off surfaces) to the
+/// pinhole at `target`, stopping a relative [`SHADOW_EPSILON`] short of it.
+fn ray_to_camera(p: Vec3, p_error: Vec3, ng: Vec3, target: Vec3) -> Ray {
+    let d0 = target - p;
+    let from = offset_ray_origin(p, p_error, ng, d0);
+    let v = target - from;
+    let len = v.length();
+    Ray::new(from, v / len, len * (1.0 - SHADOW_EPSILON))
+}
+
+/// Refuses what the light-path integrator `name` cannot render: participating media (as
+/// Mitsuba's `ptracer`) and, for light tracing (`connects_to_camera`), a camera it cannot
+/// connect to (a thin lens or an orthographic camera).
+pub fn check_scene(
+    name: &str,
+    connects_to_camera: bool,
+    camera: &crate::camera::Camera,
+    has_media: bool,
+) -> crate::error::Result<()> {
+    use crate::error::Error;
+    if connects_to_camera && !camera.supports_light_tracing() {
+        return Err(Error::Invalid(format!(
+            "the {name} integrator needs a pinhole perspective sensor (light paths cannot be \
+             connected to a thinlens or orthographic one)"
+        )));
+    }
+    if has_media {
+        return Err(Error::Invalid(format!(
+            "the {name} integrator does not support participating media: use volpath"
+        )));
+    }
+    Ok(())
+}
+
+impl ParticleTracer {
+    /// Traces one particle, pushing its contributions (weight 1 each: the caller divides by
+    /// the samples per pixel) to `splats`.
+    pub fn trace(
+        &self,
+        scene: &Scene,
+        sampler: &mut SampleStream,
+        stats: &mut PathStats,
+        splats: &mut Vec<Splat>,
+    ) {
+        if scene.emitters.is_empty() || self.max_depth == 0 {
+            return;
+        }
+        if !self.hide_emitters {
+            self.sample_visible_emitter(scene, sampler, stats, splats);
+        }
+        self.trace_light_path(scene, sampler, stats, splats);
+    }
+
+    /// Picks an emitter uniformly, as [`Scene::sample_emitter_direction`] does: its index and
+    /// the rescaled sample.
+    fn pick_emitter(scene: &Scene, u: f32) -> (usize, f32) {
+        let n = scene.emitters.len();
+        let x = u * n as f32;
+        let i = (x as usize).min(n - 1);
+        (i, n as f32)
+    }
+
+    /// Step 1: an emitter seen directly by the camera.
+    fn sample_visible_emitter(
+        &self,
+        scene: &Scene,
+        sampler: &mut SampleStream,
+        stats: &mut PathStats,
+        splats: &mut Vec<Splat>,
+    ) {
+        let (i, count) = Self::pick_emitter(scene, sampler.next_1d());
+        let u = sampler.next_2d();
+        let emitter = &scene.emitters[i];
+        if emitter.is_delta() {
+            return;
+        }
+        if emitter.is_environment() {
+            return self.environment_from_camera(scene, i, count, u, stats, splats);
+        }
+        let Some(pos) = emitter.sample_position(u, &scene.shapes) else {
+            return;
+        };
+        let Some(c) = scene.camera.sample_direction(pos.p) else {
+            return;
+        };
+        let cos = pos.n.dot(c.d);
+        if cos <= 0.0 {
+            return; // the camera sees the emitter's back
+        }
+        let value = pos.radiance * (count * cos * c.weight / pos.pdf);
+        if value.max_element() <= 0.0 {
+            return;
+        }
+        stats.rays += 1;
+        if scene.occluded(&ray_to_camera(pos.p, pos.p_error, pos.ng, c.p)) {
+            return;
+        }
+        splats.push(Splat {
+            film: c.film,
+            value,
+        });
+    }
+
+    /// An environment emitter seen from the camera: a direction drawn by the emitter from the
+    /// pinhole, unoccluded to infinity. With W_e the camera's importance along it and p_ω
+    /// the density, the contribution is L W_e / p_ω (the distance terms of Mitsuba's
+    /// area-measure form cancel).
+    fn environment_from_camera(
+        &self,
+        scene: &Scene,
+        i: usize,
+        count: f32,
+        u: Vec2,
+        stats: &mut PathStats,
+        splats: &mut Vec<Splat>,
+    ) {
+        let origin = scene.camera.position();
+        let Some(ds) = scene.emitters[i].sample_direction(origin, u, &scene.shapes) else {
+            return;
+        };
+        // A point at distance 1 along the direction carries W_e / 1².
+        let Some(c) = scene.camera.sample_direction(origin + ds.d) else {
+            return;
+        };
+        let value = ds.radiance * (count * c.weight / ds.pdf);
+        if value.max_element().is_nan() || value.max_element() <= 0.0 {
+            return;
+        }
+        stats.rays += 1;
+        if scene.occluded(&Ray::new(origin, ds.d, f32::INFINITY)) {
+            return;
+        }
+        splats.push(Splat {
+            film: c.film,
+            value,
+        });
+    }
+
+    /// Step 2: a light path, each of its surface vertices connected to the camera.
+    fn trace_light_path(
+        &self,
+        scene: &Scene,
+        sampler: &mut SampleStream,
+        stats: &mut PathStats,
+        splats: &mut Vec<Splat>,
+    ) {
+        let (i, count) = Self::pick_emitter(scene, sampler.next_1d());
+        let u_dir = sampler.next_2d();
+        let u_pos = sampler.next_2d();
+        let Some(er) =
+            scene.emitters[i].sample_ray(u_pos, u_dir, &scene.shapes, scene.bounding_sphere)
+        else {
+            return;
+        };
+        let mut ray = er.ray;
+        let mut throughput = er.weight * count;
+        let mut eta = 1.0f32;
+        let mut depth = 1u32;
+        while depth < self.max_depth {
+            stats.rays += 1;
+            let Some(si) = scene.intersect(&ray) else {
+                break;
+            };
+            stats.bounces += 1;
+            let bsdf = scene.shading_bsdf(&si).importance();
+            // Towards where the light came from.
+            let wi_world = -ray.d.normalize();
+            let wi = si.frame.to_local(wi_world);
+            let wi_dot_ng = wi_world.dot(si.ng);
+
+            // Connect the vertex to the camera.
+            if let Some(c) = scene.camera.sample_direction(si.p) {
+                let wo = si.frame.to_local(c.d);
+                let wo_dot_ng = c.d.dot(si.ng);
+                // No light leaks through shading normals: both directions must lie on the
+                // same side of the geometric and the shading normal.
+                if wi_dot_ng * wi.z > 0.0 && wo_dot_ng * wo.z > 0.0 {
+                    let correction = (wi.z * wo_dot_ng / (wo.z * wi_dot_ng)).abs();
+                    let f = bsdf.eval(wi, wo);
+                    let value = throughput * f * (correction * c.weight);
+                    if value.max_element() > 0.0 {
+                        stats.rays += 1;
+                        if !scene.occluded(&ray_to_camera(si.p, si.p_error, si.ng, c.p)) {
+                            splats.push(Splat {
+                                film: c.film,
+                                value,
+                            });
+                        }
+                    }
+                }
+            }
+
+            // Continue by sampling the BSDF.
+            let u1 = sampler.next_1d();
+            let u2 = sampler.next_2d();
+            let Some(bs) = bsdf.sample(wi, u1, u2) else {
+                break;
+            };
+            let wo_world = si.frame.to_world(bs.wo);
+            let wo_dot_ng = wo_world.dot(si.ng);
+            if !(wi_dot_ng * wi.z > 0.0 && wo_dot_ng * bs.wo.z > 0.0) {
+                break;
+            }
+            let correction = (wi.z * wo_dot_ng / (bs.wo.z * wi_dot_ng)).abs();
+            throughput *= bs.weight * correction;
+            eta *= bs.eta;
+            if !throughput.is_finite() || throughput.max_element() <= 0.0 {
+                break;
+            }
+            depth += 1;
+            if depth >= self.max_depth {
+                break;
+            }
+            if depth > self.rr_depth {
+                let q = (throughput.max_element() * eta * eta).min(0.95);
+                if sampler.next_1d() >= q {
+                    stats.rr_terminated += 1;
+                    break;
+                }
+                throughput /= q;
+            }
+            ray = Scene::spawn_ray(&si, wo_world);
+        }
+    }
+}
