@@ -158,6 +158,23 @@ impl Grid {
     }
 }
 
+/// The progressive radius reduction of Hachisuka and Jensen (2009, eqs. 6-8; pbrt-v4
+/// §15.1.5): a pixel with `n` accumulated photons, gather radius `r` and flux `tau` that
+/// found `m` photons of flux `phi` (times its camera throughput) in this iteration keeps
+/// the share α of them: N' = N + α M, r' = r √(N' / (N + M)), τ' = (τ + Φ) r'² / r².
+pub fn update(
+    n: f64,
+    r: f64,
+    tau: glam::DVec3,
+    m: u64,
+    phi: glam::DVec3,
+    alpha: f64,
+) -> (f64, f64, glam::DVec3) {
+    let n_new = n + alpha * m as f64;
+    let r_new = r * (n_new / (n + m as f64)).sqrt();
+    (n_new, r_new, (tau + phi) * (r_new * r_new) / (r * r))
+}
+
 fn luminance(s: Spectrum) -> f32 {
     0.2126 * s.x + 0.7152 * s.y + 0.0722 * s.z
 }
@@ -441,18 +458,19 @@ impl Sppm {
                 photons_emitted += self.photon_count;
             }
             // 3. Update.
-            let alpha = self.alpha as f64;
             for i in 0..n {
                 if m[i] == 0 {
                     continue;
                 }
                 let Some(vp) = &vps[i] else { continue };
-                let n_new = big_n[i] + alpha * m[i] as f64;
-                let r_new = radius[i] * (n_new / (big_n[i] + m[i] as f64)).sqrt();
-                tau[i] = (tau[i] + vp.beta.as_dvec3() * phi[i]) * (r_new * r_new)
-                    / (radius[i] * radius[i]);
-                big_n[i] = n_new;
-                radius[i] = r_new;
+                (big_n[i], radius[i], tau[i]) = update(
+                    big_n[i],
+                    radius[i],
+                    tau[i],
+                    m[i],
+                    vp.beta.as_dvec3() * phi[i],
+                    self.alpha as f64,
+                );
             }
             progress((iteration + 1) * n as u64, total);
         }
@@ -477,5 +495,32 @@ impl Sppm {
         film.samples = n as u64 * settings.spp as u64;
         stats.seconds = start.elapsed().as_secs_f64();
         Ok(RenderOutput { film, stats })
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use glam::DVec3;
+
+    /// The update's arithmetic on hand-computed cases: the first iteration (N = 0) keeps α M
+    /// photons and shrinks the area by α; a pixel that keeps finding the same photon
+    /// density keeps the same density estimate τ / (N_e π r²) up to the N_e growth.
+    #[test]
+    fn radius_reduction_follows_hachisuka_and_jensen() {
+        let (n, r, tau) = update(0.0, 2.0, DVec3::ZERO, 30, DVec3::splat(6.0), 2.0 / 3.0);
+        assert!((n - 20.0).abs() < 1e-12);
+        assert!((r * r - 4.0 * 2.0 / 3.0).abs() < 1e-12, "{r}");
+        assert!((tau - DVec3::splat(6.0 * 2.0 / 3.0)).abs().max_element() < 1e-12);
+        // N = 20, r² = 8/3, M = 10: N' = 20 + 20/3, r'² = r² (80/3) / 30.
+        let (n2, r2, tau2) = update(n, r, tau, 10, DVec3::new(1.0, 2.0, 3.0), 2.0 / 3.0);
+        assert!((n2 - 80.0 / 3.0).abs() < 1e-12);
+        let ratio = (80.0 / 3.0) / 30.0;
+        assert!((r2 * r2 - 8.0 / 3.0 * ratio).abs() < 1e-12);
+        let want = (DVec3::splat(4.0) + DVec3::new(1.0, 2.0, 3.0)) * ratio;
+        assert!((tau2 - want).abs().max_element() < 1e-12, "{tau2}");
+        // α → 1 keeps every photon and the radius.
+        let (_, r3, _) = update(5.0, 1.5, DVec3::ONE, 7, DVec3::ONE, 1.0);
+        assert!((r3 - 1.5).abs() < 1e-15);
     }
 }

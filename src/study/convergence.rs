@@ -165,8 +165,22 @@ pub fn run_ladder_with_film(
             _ => last,
         },
     };
+    // SPPM's iterations depend on each other: each step is a render of its own, and its
+    // time that render's (what a user asking for that many iterations gets).
+    let sppm = matches!(scene.integrator, crate::integrator::Integrator::Sppm(_));
     for &requested in steps {
-        let (spp, settings) = if kind.progressive() {
+        let (spp, settings) = if sppm {
+            film = Film::new(scene.width, scene.height, scene.filter);
+            stats = RenderStats::default();
+            let settings = RenderSettings {
+                spp: requested,
+                first_sample: 0,
+                seed,
+                threads,
+                sampler: None,
+            };
+            (requested, settings)
+        } else if kind.progressive() {
             let settings = RenderSettings {
                 spp: requested - done,
                 first_sample: done as u64,
