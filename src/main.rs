@@ -93,6 +93,11 @@ struct ConvergeArgs {
     /// Where converge.csv, converge.json and converge.png go.
     #[arg(long, value_name = "DIR", default_value = "converge-out")]
     out_dir: PathBuf,
+    /// Stop each ladder after the first step that takes this long (seconds): compares
+    /// settings of very different cost per sample (e.g. --sweep integrator=path,sppm) over
+    /// the same time budget with one long ladder.
+    #[arg(long, value_name = "SECONDS")]
+    max_seconds: Option<f64>,
     /// Worker threads (default: one per core).
     #[arg(long)]
     threads: Option<usize>,
@@ -657,23 +662,32 @@ fn run_converge(args: ConvergeArgs) -> Result<()> {
                 format!("{} seed {seed}", variant.label)
             };
             let quiet = args.quiet;
-            let run = ex::run_one(&scene, &steps, seed, args.threads, &reference, &mut |s| {
-                if !quiet {
-                    eprintln!(
-                        "  {label}: {:>6} spp {:>9.3} s {:>7.3} Mpath/s  RMSE {:.4e}  \
+            let max_seconds = args.max_seconds;
+            let run = ex::run_one(
+                &scene,
+                &steps,
+                seed,
+                args.threads,
+                &reference,
+                max_seconds,
+                &mut |s| {
+                    if !quiet {
+                        eprintln!(
+                            "  {label}: {:>6} spp {:>9.3} s {:>7.3} Mpath/s  RMSE {:.4e}  \
                          relMSE {:.4e}  efficiency {:.4e}{}",
-                        s.spp,
-                        s.seconds,
-                        s.mpaths_per_second,
-                        s.metrics.rmse,
-                        s.metrics.rel_mse,
-                        s.efficiency,
-                        s.z_pass_rate
-                            .map(|z| format!("  z-test pass {:.3}%", 100.0 * z))
-                            .unwrap_or_default()
-                    );
-                }
-            })?;
+                            s.spp,
+                            s.seconds,
+                            s.mpaths_per_second,
+                            s.metrics.rmse,
+                            s.metrics.rel_mse,
+                            s.efficiency,
+                            s.z_pass_rate
+                                .map(|z| format!("  z-test pass {:.3}%", 100.0 * z))
+                                .unwrap_or_default()
+                        );
+                    }
+                },
+            )?;
             runs.push(run);
         }
         results.push(SeriesResult {

@@ -653,3 +653,30 @@ fn converge_and_compare_errors() {
         &["text.exr"],
     );
 }
+
+/// `--max-seconds` ends each ladder after the first step whose time reaches it: with 0, every
+/// ladder is its first step only (and without it, all three steps run).
+#[test]
+fn converge_max_seconds_stops_each_ladder() {
+    let dir = TempDir::new("max-seconds");
+    let reference = Path::new("validation/references/cornell-box.exr");
+    let out_dir = dir.path("out");
+    assert_success(&converge(
+        128,
+        reference,
+        &out_dir,
+        &["--spp", "1,2,4", "--seeds", "2", "--max-seconds", "0"],
+    ));
+    let j = read_json(&out_dir.join("converge.json"));
+    for run in j["series"][0]["runs"].as_array().unwrap() {
+        assert_eq!(run["steps"].as_array().unwrap().len(), 1, "{run}");
+    }
+    assert_eq!(csv_rows(&out_dir.join("converge.csv")).len(), 2);
+    let out_dir = dir.path("all");
+    assert_success(&converge(128, reference, &out_dir, &["--spp", "1,2,4"]));
+    let j = read_json(&out_dir.join("converge.json"));
+    assert_eq!(
+        j["series"][0]["runs"][0]["steps"].as_array().unwrap().len(),
+        3
+    );
+}

@@ -116,19 +116,28 @@ pub fn run_ladder(
     reference: &[[f32; 3]],
     on_step: &mut dyn FnMut(&LadderStep),
 ) -> Result<Ladder> {
-    run_ladder_with_film(scene, steps, seed, threads, reference, &mut |step, _| {
-        on_step(step)
-    })
+    run_ladder_with_film(
+        scene,
+        steps,
+        seed,
+        threads,
+        reference,
+        None,
+        &mut |step, _| on_step(step),
+    )
 }
 
 /// [`run_ladder`], with `on_step` also seeing the film after each step (for measures that
-/// need the per-pixel variance, like the z-test).
+/// need the per-pixel variance, like the z-test), and stopping after the first step whose
+/// time reaches `max_seconds` (to compare integrators of very different cost per sample
+/// over the same time budget).
 pub fn run_ladder_with_film(
     scene: &Scene,
     steps: &[u32],
     seed: u64,
     threads: Option<usize>,
     reference: &[[f32; 3]],
+    max_seconds: Option<f64>,
     on_step: &mut dyn FnMut(&LadderStep, &Film),
 ) -> Result<Ladder> {
     if reference.len() != scene.width * scene.height {
@@ -222,7 +231,11 @@ pub fn run_ladder_with_film(
             metrics: error_metrics(&film.image(), reference),
         };
         on_step(&step, &film);
+        let seconds = step.seconds;
         out.push(step);
+        if max_seconds.is_some_and(|m| seconds >= m) {
+            break;
+        }
     }
     Ok(Ladder {
         steps: out,

@@ -305,12 +305,14 @@ pub fn efficiency(seconds: f64, mse: f64) -> f64 {
 }
 
 /// Renders the ladder `steps` of `scene` with `seed` against `reference` (same resolution).
+/// With `max_seconds`, the ladder stops after the first step whose time reaches it.
 pub fn run_one(
     scene: &Scene,
     steps: &[u32],
     seed: u64,
     threads: Option<usize>,
     reference: &ReferenceImage,
+    max_seconds: Option<f64>,
     on_step: &mut dyn FnMut(&StepRecord),
 ) -> Result<Run> {
     let r = &reference.image;
@@ -323,37 +325,45 @@ pub fn run_one(
     }
     let pixels = (scene.width * scene.height) as f64;
     let mut records = Vec::with_capacity(steps.len());
-    let ladder = run_ladder_with_film(scene, steps, seed, threads, &r.rgb, &mut |step, film| {
-        let z_pass_rate = (step.spp >= MIN_SPP_FOR_Z_TEST)
-            .then(|| {
-                let ours = RgbImage {
-                    width: film.width,
-                    height: film.height,
-                    rgb: film.image(),
-                    variance: Some(film.sample_variance()),
-                    attributes: BTreeMap::new(),
-                };
-                let z = z_test_either(
-                    &ours,
-                    Some(step.spp as f64),
-                    r,
-                    reference.spp,
-                    crate::study::validation::ALPHA,
-                );
-                z.test().map(|t| t.pass_rate())
-            })
-            .flatten();
-        let record = StepRecord {
-            spp: step.spp,
-            seconds: step.seconds,
-            mpaths_per_second: pixels * step.spp as f64 / step.seconds.max(1e-9) / 1e6,
-            efficiency: efficiency(step.seconds, step.metrics.mse),
-            metrics: step.metrics.clone(),
-            z_pass_rate,
-        };
-        on_step(&record);
-        records.push(record);
-    })?;
+    let ladder = run_ladder_with_film(
+        scene,
+        steps,
+        seed,
+        threads,
+        &r.rgb,
+        max_seconds,
+        &mut |step, film| {
+            let z_pass_rate = (step.spp >= MIN_SPP_FOR_Z_TEST)
+                .then(|| {
+                    let ours = RgbImage {
+                        width: film.width,
+                        height: film.height,
+                        rgb: film.image(),
+                        variance: Some(film.sample_variance()),
+                        attributes: BTreeMap::new(),
+                    };
+                    let z = z_test_either(
+                        &ours,
+                        Some(step.spp as f64),
+                        r,
+                        reference.spp,
+                        crate::study::validation::ALPHA,
+                    );
+                    z.test().map(|t| t.pass_rate())
+                })
+                .flatten();
+            let record = StepRecord {
+                spp: step.spp,
+                seconds: step.seconds,
+                mpaths_per_second: pixels * step.spp as f64 / step.seconds.max(1e-9) / 1e6,
+                efficiency: efficiency(step.seconds, step.metrics.mse),
+                metrics: step.metrics.clone(),
+                z_pass_rate,
+            };
+            on_step(&record);
+            records.push(record);
+        },
+    )?;
     let points: Vec<(f64, f64)> = ladder.rmse_points();
     let slope = fit_slope(
         &points,
