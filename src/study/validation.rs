@@ -84,6 +84,10 @@ pub struct ValidationScene {
     /// `feature`.
     #[serde(default)]
     pub mitsuba_integrator: Option<String>,
+    /// For the reference only: render_reference.py's `--variance` method, `passes` where
+    /// Mitsuba's moment wrapper cannot take the integrator (its `ptracer`).
+    #[serde(default)]
+    pub mitsuba_variance: Option<String>,
     /// For penumbra only: the integrator it renders with instead of the scene's (a light
     /// path integrator, `ptracer`, checked against the scene's path-traced reference; it
     /// takes the scene integrator's max_depth, rr_depth and hide_emitters). Such an entry

@@ -110,6 +110,8 @@ def main(argv=None):
             cmd += ["-D", f"{k}={v}"]
         if "mitsuba_integrator" in scene:
             cmd += ["--integrator", scene["mitsuba_integrator"]]
+        if "mitsuba_variance" in scene:
+            cmd += ["--variance", scene["mitsuba_variance"]]
         print(f"{scene['name']}: rendering ({reason}): render_reference.py "
               + " ".join(os.path.relpath(c, REPO_ROOT) if os.path.isabs(c) else c for c in cmd),
               file=sys.stderr, flush=True)
