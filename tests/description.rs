@@ -215,11 +215,11 @@ fn rr_depth_must_be_positive() {
 
 #[test]
 fn unknown_integrator_fails() {
-    let xml = with_sensor(r#"<integrator type="ptracer"/>"#);
+    let xml = with_sensor(r#"<integrator type="bdpt"/>"#);
     assert_error(
         &xml,
         "<integrator",
-        &["unsupported plugin <integrator type=\"ptracer\">"],
+        &["unsupported plugin <integrator type=\"bdpt\">"],
     );
 }
 
@@ -1983,8 +1983,8 @@ fn direct_and_moment_integrators() {
             "one nested integrator",
         ),
         (
-            r#"<integrator type="ptracer"/>"#,
-            "unsupported plugin <integrator type=\"ptracer\">",
+            r#"<integrator type="bdpt"/>"#,
+            "unsupported plugin <integrator type=\"bdpt\">",
         ),
     ] {
         let e = error_body(body);
