@@ -84,6 +84,22 @@ pub fn check_scene(
     Ok(())
 }
 
+/// The adjoint BSDF's shading-normal correction (Veach 1997, §5.3) for light arriving from
+/// `wi_world` and leaving towards `wo_world` (`wi`, `wo` the same in the shading frame) at a
+/// surface of geometric normal `ng`: |cos_s(wi) (wo · ng) / (cos_s(wo) (wi · ng))|, or `None`
+/// where a direction lies on different sides of the geometric and the shading normal (no
+/// light leaks through shading normals).
+pub(crate) fn adjoint_correction(
+    ng: Vec3,
+    wi_world: Vec3,
+    wi: Vec3,
+    wo_world: Vec3,
+    wo: Vec3,
+) -> Option<f32> {
+    let (wi_ng, wo_ng) = (wi_world.dot(ng), wo_world.dot(ng));
+    (wi_ng * wi.z > 0.0 && wo_ng * wo.z > 0.0).then(|| (wi.z * wo_ng / (wo.z * wi_ng)).abs())
+}
+
 impl ParticleTracer {
     /// Traces one particle, pushing its contributions (weight 1 each: the caller divides by
     /// the samples per pixel) to `splats`.
@@ -218,16 +234,11 @@ impl ParticleTracer {
             // Towards where the light came from.
             let wi_world = -ray.d.normalize();
             let wi = si.frame.to_local(wi_world);
-            let wi_dot_ng = wi_world.dot(si.ng);
 
             // Connect the vertex to the camera.
             if let Some(c) = scene.camera.sample_direction(si.p) {
                 let wo = si.frame.to_local(c.d);
-                let wo_dot_ng = c.d.dot(si.ng);
-                // No light leaks through shading normals: both directions must lie on the
-                // same side of the geometric and the shading normal.
-                if wi_dot_ng * wi.z > 0.0 && wo_dot_ng * wo.z > 0.0 {
-                    let correction = (wi.z * wo_dot_ng / (wo.z * wi_dot_ng)).abs();
+                if let Some(correction) = adjoint_correction(si.ng, wi_world, wi, c.d, wo) {
                     let f = bsdf.eval(wi, wo);
                     let value = throughput * f * (correction * c.weight);
                     if value.max_element() > 0.0 {
@@ -249,11 +260,9 @@ impl ParticleTracer {
                 break;
             };
             let wo_world = si.frame.to_world(bs.wo);
-            let wo_dot_ng = wo_world.dot(si.ng);
-            if !(wi_dot_ng * wi.z > 0.0 && wo_dot_ng * bs.wo.z > 0.0) {
+            let Some(correction) = adjoint_correction(si.ng, wi_world, wi, wo_world, bs.wo) else {
                 break;
-            }
-            let correction = (wi.z * wo_dot_ng / (bs.wo.z * wi_dot_ng)).abs();
+            };
             throughput *= bs.weight * correction;
             eta *= bs.eta;
             if !throughput.is_finite() || throughput.max_element() <= 0.0 {

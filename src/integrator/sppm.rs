@@ -306,13 +306,11 @@ impl Sppm {
                 break;
             };
             let wo_world = si.frame.to_world(bs.wo);
-            // The adjoint BSDF's shading-normal correction (Veach 1997, §5.3), and no light
-            // leaks between the sides of the geometric and the shading normal.
-            let (wi_ng, wo_ng) = (wi_world.dot(si.ng), wo_world.dot(si.ng));
-            if !(wi_ng * wi.z > 0.0 && wo_ng * bs.wo.z > 0.0) {
+            let Some(correction) =
+                super::ptracer::adjoint_correction(si.ng, wi_world, wi, wo_world, bs.wo)
+            else {
                 break;
-            }
-            let correction = (wi.z * wo_ng / (bs.wo.z * wi_ng)).abs();
+            };
             let next = beta * bs.weight * correction;
             let (l_old, l_new) = (luminance(beta), luminance(next));
             if !(l_old > 0.0 && l_new > 0.0 && next.is_finite()) {
