@@ -46,6 +46,26 @@ pub enum IntegratorDesc {
     },
 }
 
+/// Mitsuba's bounds on `max_depth` (−1: unbounded) and `rr_depth`.
+fn check_depths(o: &Object, max_depth: i64, rr_depth: i64) -> Result<()> {
+    if max_depth < -1 {
+        return Err(Error::scene(
+            &o.location,
+            format!(
+                "max_depth of {} must be -1 (unbounded) or >= 0, got {max_depth}",
+                describe(o)
+            ),
+        ));
+    }
+    if rr_depth <= 0 {
+        return Err(Error::scene(
+            &o.location,
+            format!("rr_depth of {} must be > 0, got {rr_depth}", describe(o)),
+        ));
+    }
+    Ok(())
+}
+
 /// The integrator, and whether it was wrapped in Mitsuba's `moment` integrator (which renders
 /// its nested integrator and adds the samples' second moment to the output).
 pub(super) fn integrator_desc(o: &Object) -> Result<(IntegratorDesc, bool)> {
@@ -94,21 +114,7 @@ pub(super) fn integrator_desc(o: &Object) -> Result<(IntegratorDesc, bool)> {
                 true
             };
             p.finish()?;
-            if max_depth < -1 {
-                return Err(Error::scene(
-                    &o.location,
-                    format!(
-                        "max_depth of {} must be -1 (unbounded) or >= 0, got {max_depth}",
-                        describe(o)
-                    ),
-                ));
-            }
-            if rr_depth <= 0 {
-                return Err(Error::scene(
-                    &o.location,
-                    format!("rr_depth of {} must be > 0, got {rr_depth}", describe(o)),
-                ));
-            }
+            check_depths(o, max_depth, rr_depth)?;
             if plugin == "path" {
                 IntegratorDesc::Path {
                     max_depth,
@@ -131,21 +137,7 @@ pub(super) fn integrator_desc(o: &Object) -> Result<(IntegratorDesc, bool)> {
             let hide_emitters = p.boolean("hide_emitters", false)?;
             let samples_per_pass = p.int("samples_per_pass", 0)?;
             p.finish()?;
-            if max_depth < -1 {
-                return Err(Error::scene(
-                    &o.location,
-                    format!(
-                        "max_depth of {} must be -1 (unbounded) or >= 0, got {max_depth}",
-                        describe(o)
-                    ),
-                ));
-            }
-            if rr_depth <= 0 {
-                return Err(Error::scene(
-                    &o.location,
-                    format!("rr_depth of {} must be > 0, got {rr_depth}", describe(o)),
-                ));
-            }
+            check_depths(o, max_depth, rr_depth)?;
             if !(0..=u32::MAX as i64).contains(&samples_per_pass) {
                 return Err(Error::scene(
                     &o.location,
