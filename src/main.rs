@@ -320,6 +320,7 @@ fn run_render(args: RenderArgs) -> Result<()> {
         }),
         checkpoint: checkpointing,
         scene_hash,
+        stop: None,
     };
     if let Some((index, count)) = args.part {
         let plan = progressive::PartPlan {
@@ -365,6 +366,7 @@ fn run_render(args: RenderArgs) -> Result<()> {
         progressive::StopReason::SppReached => "spp reached",
         progressive::StopReason::TimeLimit => "time limit",
         progressive::StopReason::TargetError => "target error reached",
+        progressive::StopReason::Interrupted => "interrupted",
     };
     write_image(&ImageOutput {
         output: &args.output,

@@ -16,6 +16,8 @@ use crate::render::{render, RenderSettings, RenderStats};
 use crate::scene::Scene;
 use std::io::{Read, Write};
 use std::path::{Path, PathBuf};
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::Arc;
 use std::time::{Duration, Instant};
 
 /// Samples per pixel per pass: about 2^18 paths per pass (a fraction of a second), at least 1.
@@ -51,6 +53,10 @@ pub struct ProgressiveSettings {
     pub checkpoint: Option<Checkpointing>,
     /// Identifies the scene (see [`scene_hash`]); stored in checkpoints.
     pub scene_hash: u64,
+    /// Set from another thread to stop the render after the pass under way (e.g. on Ctrl-C
+    /// in the Python module): the render ends with [`StopReason::Interrupted`] and the
+    /// samples of the passes finished so far (and a final checkpoint, if checkpointing).
+    pub stop: Option<Arc<AtomicBool>>,
 }
 
 /// Why a progressive render stopped.
@@ -59,6 +65,8 @@ pub enum StopReason {
     SppReached,
     TimeLimit,
     TargetError,
+    /// [`ProgressiveSettings::stop`] was set.
+    Interrupted,
 }
 
 /// The running state of a render: sums and counters.
@@ -163,6 +171,13 @@ pub fn render_progressive(
     let reason = loop {
         if progress.samples >= settings.spp as u64 {
             break StopReason::SppReached;
+        }
+        if settings
+            .stop
+            .as_ref()
+            .is_some_and(|s| s.load(Ordering::Relaxed))
+        {
+            break StopReason::Interrupted;
         }
         if let Some(limit) = settings.time_limit {
             if start.elapsed() >= limit {

@@ -36,6 +36,7 @@ fn one_process(scene: &Scene, hash: u64, spp: u32) -> Film {
         target_rel_error: None,
         checkpoint: None,
         scene_hash: hash,
+        stop: None,
     };
     render_progressive(scene, &settings, None, &|_| {})
         .expect("renders")

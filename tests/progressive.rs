@@ -170,6 +170,7 @@ fn settings(spp: u32) -> ProgressiveSettings {
         target_rel_error: None,
         checkpoint: None,
         scene_hash: 0,
+        stop: None,
     }
 }
 
@@ -227,4 +228,35 @@ fn time_limit_stops_the_render() {
         "{:?}",
         start.elapsed()
     );
+}
+
+#[test]
+fn stop_flag_ends_the_render_after_the_pass_under_way() {
+    use std::sync::atomic::{AtomicBool, Ordering};
+    use std::sync::Arc;
+    let scene = load("scenes/cornell-box.xml", &[("res", "32")]);
+    let pass = penumbra::progressive::pass_spp(32, 32) as u64;
+    // Set before the render: no pass is rendered.
+    let stop = Arc::new(AtomicBool::new(true));
+    let s = ProgressiveSettings {
+        stop: Some(stop.clone()),
+        ..settings(8 * pass as u32)
+    };
+    let (p, reason) = render_progressive(&scene, &s, None, &|_| {}).unwrap();
+    assert_eq!((reason, p.samples), (StopReason::Interrupted, 0));
+    // Set (from the callback, as another thread would) during the third pass: the render
+    // keeps exactly three passes, whose sums equal an uninterrupted render of that many
+    // samples.
+    stop.store(false, Ordering::Relaxed);
+    let (p, reason) = render_progressive(&scene, &s, None, &|p| {
+        if p.samples == 3 * pass {
+            stop.store(true, Ordering::Relaxed);
+        }
+    })
+    .unwrap();
+    assert_eq!((reason, p.samples), (StopReason::Interrupted, 3 * pass));
+    let (whole, reason) =
+        render_progressive(&scene, &settings(3 * pass as u32), None, &|_| {}).unwrap();
+    assert_eq!(reason, StopReason::SppReached);
+    assert_eq!(p.film.image(), whole.film.image());
 }
