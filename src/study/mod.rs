@@ -2,7 +2,8 @@
 //! ([`compare`], [`metrics`]), convergence ladders and experiments ([`convergence`],
 //! [`experiment`]), the validation study against Mitsuba ([`validation`]) and Mitsuba's own
 //! regression suite ([`suite`]), the statistics
-//! behind the tests ([`stats`], [`chi2`]) and plots ([`plot`]).
+//! behind the tests ([`stats`], [`chi2`]), plots ([`plot`]) and the interactive comparison page
+//! ([`report`]).
 
 pub mod chi2;
 pub mod compare;
@@ -10,6 +11,7 @@ pub mod convergence;
 pub mod experiment;
 pub mod metrics;
 pub mod plot;
+pub mod report;
 pub mod stats;
 pub mod suite;
 pub mod validation;
