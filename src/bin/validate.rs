@@ -1,16 +1,19 @@
 //! The validation study: every landed scene of `validation/scenes.toml` rendered along a
 //! ladder of sample counts and checked against its Mitsuba 3.9.1 reference (per-pixel
 //! z-test, image mean, convergence slope); writes `validation/report.md` and one plot per
-//! scene in `validation/plots/`. Exits with status 1 if any check fails.
+//! scene in `validation/plots/`, and the interactive comparison page of all scenes in
+//! `validation/html/` (`penumbra report`'s page). Exits with status 1 if any check fails.
 //!
 //!     cargo run --release --bin validate [-- --scene NAME ...] [--max-spp N]
 //!         [--sampler independent,stratified,... --report R.md --plots DIR]
 
 use anyhow::{bail, Context, Result};
 use clap::Parser;
+use penumbra::io::exr::RgbImage;
 use penumbra::sampler::SamplerKind;
 use penumbra::study::convergence::spp_ladder;
 use penumbra::study::plot::{write_convergence_png, ConvergencePlot};
+use penumbra::study::report::{write_report, ReportImage, ReportPlot, ReportScene};
 use penumbra::study::validation::{
     load_scene_list, report_markdown, validate_scene, ReportContext, SceneResult, ValidationScene,
 };
@@ -45,6 +48,10 @@ struct Args {
     /// Plot directory, relative to the root.
     #[arg(long, default_value = "validation/plots")]
     plots: PathBuf,
+    /// The interactive comparison page of all scenes (penumbra's last image against the
+    /// Mitsuba reference, with the plots), a folder relative to the root.
+    #[arg(long, default_value = "validation/html")]
+    html: PathBuf,
     /// Render every scene with these samplers instead of its own, one after the other
     /// (a comma list of independent, stratified, multijitter, orthogonal, ldsampler,
     /// zsobol); with more than one the report adds each sampler's efficiency against the
@@ -115,6 +122,50 @@ fn efficiency_table(
         }
     }
     out
+}
+
+/// One scene of the validation page: the Mitsuba reference, penumbra's image at the top of
+/// the ladder, the convergence plot and the verdict.
+fn report_scene(r: &SceneResult, plot: &Path, failures: &[String]) -> ReportScene {
+    let reference = &r.reference;
+    let last = r.study.last();
+    let film = &r.study.ladder.film;
+    ReportScene {
+        name: r.scene.name.clone(),
+        reference: ReportImage {
+            name: format!(
+                "Mitsuba {} {}",
+                reference.mitsuba_version.as_deref().unwrap_or("3"),
+                reference.variant.as_deref().unwrap_or("")
+            )
+            .trim_end()
+            .to_string(),
+            image: reference.image.clone(),
+            spp: Some(reference.spp as f64),
+            seconds: reference.render_seconds,
+        },
+        images: vec![ReportImage {
+            name: "penumbra".into(),
+            image: RgbImage {
+                width: film.width,
+                height: film.height,
+                rgb: film.image(),
+                variance: Some(film.sample_variance()),
+                attributes: Default::default(),
+            },
+            spp: last.map(|s| s.spp as f64),
+            seconds: last.map(|s| s.seconds),
+        }],
+        plots: vec![ReportPlot {
+            caption: format!("{}: error against spp", r.scene.name),
+            path: plot.to_path_buf(),
+        }],
+        notes: vec![if failures.is_empty() {
+            "validation: pass".to_string()
+        } else {
+            format!("validation: FAIL: {}", failures.join("; "))
+        }],
+    }
 }
 
 /// Proleptic Gregorian (year, month, day) of a count of days since 1970-01-01 (the
@@ -265,6 +316,7 @@ fn run() -> Result<()> {
 
     let start = Instant::now();
     let mut results: Vec<SceneResult> = Vec::new();
+    let mut pages: Vec<ReportScene> = Vec::new();
     for (entry, sampler) in selected
         .iter()
         .flat_map(|e| samplers.iter().map(move |s| (e, *s)))
@@ -316,6 +368,7 @@ fn run() -> Result<()> {
             },
         )?;
         let failures = r.study.failures();
+        pages.push(report_scene(&r, &plot_path, &failures));
         eprintln!(
             "  {}: z-test pass {:.3}%, mean worst {:.2} se / {:.3}%, slope {}: {}",
             entry.name,
@@ -352,11 +405,17 @@ fn run() -> Result<()> {
     }
     std::fs::write(&report_path, md)
         .with_context(|| format!("cannot write {}", report_path.display()))?;
+    let page = write_report(
+        &root.join(&args.html),
+        "penumbra against Mitsuba 3.9.1: the validation study",
+        &pages,
+    )?;
     eprintln!(
-        "wrote {} and {} plot(s) in {} ({:.1} s)",
+        "wrote {}, {} plot(s) in {} and {} ({:.1} s)",
         report_path.display(),
         results.len(),
         plots_dir.display(),
+        page.index.display(),
         ctx.total_seconds
     );
     let failed: Vec<_> = results
