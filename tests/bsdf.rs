@@ -150,6 +150,26 @@ fn smooth_cases() -> Vec<Case> {
         r#"<bsdf type="twosided"><bsdf type="roughconductor"><string name="distribution" value="ggx"/><float name="alpha" value="0.2"/></bsdf></bsdf>"#,
         0.2,
     ));
+    // phong (Mitsuba 0.6's modified Phong): "alpha" is the Beckmann roughness of equal
+    // lobe width, √(2 / (n + 2)).
+    v.extend([
+        case("phong", r#"<bsdf type="phong"/>"#, 0.25),
+        case(
+            "phong n=1 coloured",
+            r#"<bsdf type="phong"><float name="exponent" value="1"/><rgb name="diffuse_reflectance" value="0.1, 0.4, 0.7"/><rgb name="specular_reflectance" value="0.8, 0.5, 0.2"/></bsdf>"#,
+            1.0,
+        ),
+        case(
+            "phong n=1000 specular only",
+            r#"<bsdf type="phong"><float name="exponent" value="1000"/><rgb name="diffuse_reflectance" value="0"/><rgb name="specular_reflectance" value="1"/></bsdf>"#,
+            0.045,
+        ),
+        case(
+            "phong n=0",
+            r#"<bsdf type="phong"><float name="exponent" value="0"/><rgb name="diffuse_reflectance" value="0.3"/><rgb name="specular_reflectance" value="0.7"/></bsdf>"#,
+            f32::INFINITY,
+        ),
+    ]);
     v
 }
 

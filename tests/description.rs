@@ -2069,3 +2069,31 @@ fn shape_groups_and_instances() {
         assert!(e.contains(part), "{body}: {e}");
     }
 }
+
+/// `phong` (Mitsuba 0.6's, penumbra's own in Mitsuba 3 files): its defaults, and the energy
+/// bound kd + ks ≤ 1 and the exponent's range checked for constant values.
+#[test]
+fn phong_reads_its_parameters_and_refuses_energy_gain() {
+    use penumbra::scene::description::BsdfDesc;
+    let d = desc_body(r#"<shape type="sphere"><bsdf type="phong"/></shape>"#);
+    match &d.shapes[0].bsdf {
+        BsdfDesc::Phong {
+            exponent,
+            diffuse_reflectance,
+            specular_reflectance,
+        } => {
+            assert_eq!(*exponent, 30.0);
+            assert_eq!(diffuse_reflectance.constant_rgb(), Some(DVec3::splat(0.5)));
+            assert_eq!(specular_reflectance.constant_rgb(), Some(DVec3::splat(0.2)));
+        }
+        other => panic!("expected phong, got {other:?}"),
+    }
+    let e = error_body(
+        r#"<shape type="sphere"><bsdf type="phong"><rgb name="diffuse_reflectance" value="0.5, 0.9, 0.5"/><rgb name="specular_reflectance" value="0.2"/></bsdf></shape>"#,
+    );
+    assert!(e.contains("exceeds 1"), "{e}");
+    let e = error_body(
+        r#"<shape type="sphere"><bsdf type="phong"><float name="exponent" value="-1"/></bsdf></shape>"#,
+    );
+    assert!(e.contains("exponent"), "{e}");
+}

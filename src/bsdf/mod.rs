@@ -8,6 +8,7 @@ pub mod dielectric;
 pub mod diffuse;
 pub mod fresnel;
 pub mod microfacet;
+pub mod phong;
 pub mod plastic;
 pub mod presets;
 pub mod principled;
@@ -21,6 +22,7 @@ pub use conductor::Conductor;
 pub use dielectric::Dielectric;
 pub use diffuse::Diffuse;
 pub use microfacet::{Microfacet, MicrofacetType};
+pub use phong::Phong;
 pub use plastic::Plastic;
 pub use principled::{Principled, PrincipledParams};
 pub use principledthin::{PrincipledThin, PrincipledThinParams};
@@ -89,6 +91,7 @@ pub enum Bsdf {
     RoughPlastic(RoughPlastic),
     Principled(Principled),
     PrincipledThin(PrincipledThin),
+    Phong(Phong),
 }
 
 impl Bsdf {
@@ -126,6 +129,7 @@ impl Bsdf {
             Bsdf::RoughPlastic(b) => b.eval(wi, wo),
             Bsdf::Principled(b) => b.eval(wi, wo),
             Bsdf::PrincipledThin(b) => b.eval(wi, wo),
+            Bsdf::Phong(b) => b.eval(wi, wo),
         }
     }
 
@@ -142,6 +146,7 @@ impl Bsdf {
             Bsdf::RoughPlastic(b) => b.pdf(wi, wo),
             Bsdf::Principled(b) => b.pdf(wi, wo),
             Bsdf::PrincipledThin(b) => b.pdf(wi, wo),
+            Bsdf::Phong(b) => b.pdf(wi, wo),
         }
     }
 
@@ -158,6 +163,7 @@ impl Bsdf {
             Bsdf::RoughPlastic(b) => b.sample(wi, u1, u2),
             Bsdf::Principled(b) => b.sample(wi, u1, u2),
             Bsdf::PrincipledThin(b) => b.sample(wi, u1, u2),
+            Bsdf::Phong(b) => b.sample(wi, u1, u2),
         }
     }
 
@@ -167,7 +173,9 @@ impl Bsdf {
         match self {
             Bsdf::Diffuse(_) => true,
             Bsdf::Conductor(_) | Bsdf::Dielectric(_) | Bsdf::ThinDielectric(_) => false,
-            Bsdf::RoughConductor(_) | Bsdf::Plastic(_) | Bsdf::RoughPlastic(_) => wi.z > 0.0,
+            Bsdf::RoughConductor(_) | Bsdf::Plastic(_) | Bsdf::RoughPlastic(_) | Bsdf::Phong(_) => {
+                wi.z > 0.0
+            }
             Bsdf::RoughDielectric(_) => true,
             Bsdf::Principled(b) => b.has_smooth_lobe(wi),
             Bsdf::PrincipledThin(b) => b.has_smooth_lobe(wi),
@@ -225,6 +233,8 @@ impl Bsdf {
             (Bsdf::Plastic(b), P::SpecularReflectance) => b.specular_reflectance = v,
             (Bsdf::RoughPlastic(b), P::DiffuseReflectance) => b.diffuse_reflectance = v,
             (Bsdf::RoughPlastic(b), P::SpecularReflectance) => b.specular_reflectance = v,
+            (Bsdf::Phong(b), P::DiffuseReflectance) => b.diffuse_reflectance = v,
+            (Bsdf::Phong(b), P::SpecularReflectance) => b.specular_reflectance = v,
             _ => {}
         }
     }

@@ -6,7 +6,7 @@
 
 use crate::bsdf::roughplastic::CoatingTables;
 use crate::bsdf::{
-    Bsdf, BsdfParam, Conductor, Dielectric, Diffuse, Microfacet, MicrofacetType, Plastic,
+    Bsdf, BsdfParam, Conductor, Dielectric, Diffuse, Microfacet, MicrofacetType, Phong, Plastic,
     Principled, PrincipledParams, PrincipledThin, PrincipledThinParams, RoughConductor,
     RoughDielectric, RoughPlastic, ThinDielectric,
 };
@@ -214,6 +214,15 @@ impl MaterialBuilder {
                 param(self, P::DiffuseReflectance, diffuse_reflectance)?,
                 param(self, P::SpecularReflectance, specular_reflectance)?,
                 *nonlinear,
+            )),
+            BsdfDesc::Phong {
+                exponent,
+                diffuse_reflectance,
+                specular_reflectance,
+            } => Bsdf::Phong(Phong::new(
+                *exponent as f32,
+                param(self, P::DiffuseReflectance, diffuse_reflectance)?,
+                param(self, P::SpecularReflectance, specular_reflectance)?,
             )),
             BsdfDesc::RoughPlastic {
                 distribution,

@@ -64,6 +64,12 @@ pub enum BsdfDesc {
         specular_reflectance: TextureDesc,
         nonlinear: bool,
     },
+    /// Mitsuba 0.6's `phong` (Mitsuba 3 has none): the modified Phong model.
+    Phong {
+        exponent: f64,
+        diffuse_reflectance: TextureDesc,
+        specular_reflectance: TextureDesc,
+    },
     /// `mask`: `opacity` (one value) of the nested BSDF, the rest passes through.
     Mask {
         opacity: TextureDesc,
@@ -187,6 +193,11 @@ impl BsdfDesc {
                 diffuse_reflectance,
                 specular_reflectance,
                 ..
+            }
+            | BsdfDesc::Phong {
+                diffuse_reflectance,
+                specular_reflectance,
+                ..
             } => {
                 tex(diffuse_reflectance);
                 tex(specular_reflectance);
@@ -258,6 +269,53 @@ pub(super) fn bsdf_desc(cx: &Ctx, o: &Arc<Object>) -> Result<BsdfDesc> {
                 TextureDesc::value(0.5),
             )?,
         },
+        "phong" => {
+            let exponent = p.float("exponent", 30.0)?;
+            if !(0.0..=1e5).contains(&exponent) {
+                return Err(Error::scene(
+                    &o.location,
+                    format!(
+                        "the exponent of {} must be in [0, 1e5], got {exponent}",
+                        describe(o)
+                    ),
+                ));
+            }
+            let diffuse_reflectance = texture_or(
+                cx,
+                &mut p,
+                &mut ch,
+                "diffuse_reflectance",
+                refl,
+                TextureDesc::value(0.5),
+            )?;
+            let specular_reflectance = texture_or(
+                cx,
+                &mut p,
+                &mut ch,
+                "specular_reflectance",
+                refl,
+                TextureDesc::value(0.2),
+            )?;
+            if let (Some(d), Some(s)) = (
+                diffuse_reflectance.constant_rgb(),
+                specular_reflectance.constant_rgb(),
+            ) {
+                if (0..3).any(|c| d[c] + s[c] > 1.0 + 1e-6) {
+                    return Err(Error::scene(
+                        &o.location,
+                        format!(
+                            "{}: diffuse_reflectance + specular_reflectance exceeds 1 ({:?} + {:?}): the surface would reflect more light than it receives",
+                            describe(o), d, s
+                        ),
+                    ));
+                }
+            }
+            BsdfDesc::Phong {
+                exponent,
+                diffuse_reflectance,
+                specular_reflectance,
+            }
+        }
         "twosided" => {
             if let Some((true, loc)) = p
                 .take("allow_transmission")
