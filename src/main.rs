@@ -146,8 +146,9 @@ struct RenderArgs {
     /// Set a scene parameter declared with <default name=...>, like Mitsuba's -D.
     #[arg(short = 'D', value_name = "NAME=VALUE")]
     define: Vec<String>,
-    /// Render with this integrator instead of the scene's: `ptracer` (light tracing) or
-    /// `path`, with the scene integrator's max_depth, rr_depth and hide_emitters.
+    /// Render with this integrator instead of the scene's: `path`, `ptracer` (light
+    /// tracing), `sppm` (photon mapping) or `whitted` (recursive ray tracing), with the scene
+    /// integrator's max_depth, rr_depth and hide_emitters.
     #[arg(long, value_name = "NAME")]
     integrator: Option<String>,
     /// Worker threads (default: one per core).

@@ -180,6 +180,7 @@ fn negative_controls(
         Integrator::VolPathMis(p) => Some(&mut p.max_depth),
         Integrator::ParticleTracer(p) => Some(&mut p.max_depth),
         Integrator::Sppm(p) => Some(&mut p.max_depth),
+        Integrator::Whitted(p) => Some(&mut p.max_depth),
         Integrator::Direct(_) => None,
     };
     if let Some(max_depth) = max_depth {

@@ -7,6 +7,7 @@ pub mod ptracer;
 pub mod sppm;
 pub mod volpath;
 pub mod volpathmis;
+pub mod whitted;
 
 pub use direct::DirectIntegrator;
 pub use path::PathIntegrator;
@@ -14,6 +15,7 @@ pub use ptracer::ParticleTracer;
 pub use sppm::Sppm;
 pub use volpath::VolPathIntegrator;
 pub use volpathmis::VolPathMisIntegrator;
+pub use whitted::WhittedIntegrator;
 
 use crate::bsdf::Spectrum;
 use crate::emitter::Emitter;
@@ -47,6 +49,8 @@ impl std::ops::AddAssign for PathStats {
 pub enum Integrator {
     Path(PathIntegrator),
     Direct(DirectIntegrator),
+    /// Classic recursive ray tracing (penumbra's own).
+    Whitted(WhittedIntegrator),
     VolPath(VolPathIntegrator),
     VolPathMis(VolPathMisIntegrator),
     /// Light tracing: not an estimator of camera-ray radiance, so [`Integrator::li`] does
@@ -69,6 +73,7 @@ impl Integrator {
         match self {
             Integrator::Path(p) => p.li(scene, ray, sampler, stats),
             Integrator::Direct(d) => d.li(scene, ray, sampler, stats),
+            Integrator::Whitted(w) => w.li(scene, ray, sampler, stats),
             Integrator::VolPath(v) => v.li(scene, ray, sampler, stats),
             Integrator::VolPathMis(v) => v.li(scene, ray, sampler, stats),
             // The render driver never asks a light tracer for camera-ray radiance.

@@ -97,7 +97,7 @@ impl ShadingBsdf {
     }
 
     #[inline]
-    fn node(&self, i: u8) -> &Node {
+    pub(crate) fn node(&self, i: u8) -> &Node {
         self.nodes.get(i as usize).unwrap_or(&Node::Null)
     }
 

@@ -86,9 +86,9 @@ impl Scene {
     }
 
     /// Replaces the integrator by `kind`, which takes the current one's `max_depth`,
-    /// `rr_depth` and `hide_emitters`: `path`, `ptracer` (light tracing) or `sppm` (photon
+    /// `rr_depth` and `hide_emitters`: `path`, `ptracer` (light tracing), `sppm` (photon
     /// mapping with its defaults: one photon per pixel per iteration, automatic radius,
-    /// α = 2/3). For rendering a
+    /// α = 2/3) or `whitted` (one sample per area light). For rendering a
     /// scene written for the path tracer with a light-path integrator (the validation
     /// study's light-tracing entries, `penumbra render --integrator`).
     pub fn use_integrator(&mut self, kind: &str) -> Result<()> {
@@ -100,6 +100,7 @@ impl Scene {
             Integrator::ParticleTracer(p) => (p.max_depth, p.rr_depth, p.hide_emitters),
             Integrator::Sppm(p) => (p.max_depth, 5, false),
             Integrator::Direct(d) => (2, 5, d.hide_emitters),
+            Integrator::Whitted(w) => (w.max_depth, 5, w.hide_emitters),
         };
         self.integrator = match kind {
             "path" => Integrator::Path(PathIntegrator {
@@ -135,9 +136,23 @@ impl Scene {
                     alpha: 2.0 / 3.0,
                 })
             }
+            "whitted" => {
+                use crate::integrator::whitted::{WhittedIntegrator, MAX_DEPTH};
+                if !(1..=MAX_DEPTH).contains(&max_depth) {
+                    return Err(Error::Invalid(format!(
+                        "whitted needs a max_depth in [1, {MAX_DEPTH}]; the scene's integrator has {}",
+                        if max_depth == u32::MAX { "-1 (unbounded)".to_string() } else { max_depth.to_string() }
+                    )));
+                }
+                Integrator::Whitted(WhittedIntegrator {
+                    max_depth,
+                    emitter_samples: 1,
+                    hide_emitters,
+                })
+            }
             _ => {
                 return Err(Error::Invalid(format!(
-                    "unknown integrator '{kind}' (expected path, ptracer or sppm)"
+                    "unknown integrator '{kind}' (expected path, ptracer, sppm or whitted)"
                 )))
             }
         };

@@ -199,6 +199,15 @@ pub fn build(desc: &SceneDescription) -> Result<Scene> {
             rr_depth: rr_depth.clamp(1, u32::MAX as i64) as u32,
             hide_emitters,
         }),
+        IntegratorDesc::Whitted {
+            max_depth,
+            emitter_samples,
+            hide_emitters,
+        } => Integrator::Whitted(crate::integrator::WhittedIntegrator {
+            max_depth,
+            emitter_samples,
+            hide_emitters,
+        }),
         IntegratorDesc::Direct {
             emitter_samples,
             bsdf_samples,

@@ -44,6 +44,13 @@ pub enum IntegratorDesc {
         bsdf_samples: u32,
         hide_emitters: bool,
     },
+    /// penumbra's `whitted`: recursive ray tracing, direct light from every emitter
+    /// (`emitter_samples` per area light), perfect reflection and refraction to `max_depth`.
+    Whitted {
+        max_depth: u32,
+        emitter_samples: u32,
+        hide_emitters: bool,
+    },
 }
 
 /// Mitsuba's bounds on `max_depth` (−1: unbounded) and `rr_depth`.
@@ -227,6 +234,37 @@ pub(super) fn integrator_desc(o: &Object) -> Result<(IntegratorDesc, bool)> {
             IntegratorDesc::Direct {
                 emitter_samples: emitter_samples as u32,
                 bsdf_samples: bsdf_samples as u32,
+                hide_emitters,
+            }
+        }
+        "whitted" => {
+            use crate::integrator::whitted::MAX_DEPTH;
+            let max_depth = p.int("max_depth", 6)?;
+            let emitter_samples = p.int("emitter_samples", 1)?;
+            let hide_emitters = p.boolean("hide_emitters", false)?;
+            p.finish()?;
+            if !(1..=MAX_DEPTH as i64).contains(&max_depth) {
+                return Err(Error::scene(
+                    &o.location,
+                    format!(
+                        "max_depth of {} must be in [1, {MAX_DEPTH}] (every glass interface \
+                         doubles its rays), got {max_depth}",
+                        describe(o)
+                    ),
+                ));
+            }
+            if !(1..=1 << 16).contains(&emitter_samples) {
+                return Err(Error::scene(
+                    &o.location,
+                    format!(
+                        "emitter_samples of {} must be in [1, 65536], got {emitter_samples}",
+                        describe(o)
+                    ),
+                ));
+            }
+            IntegratorDesc::Whitted {
+                max_depth: max_depth as u32,
+                emitter_samples: emitter_samples as u32,
                 hide_emitters,
             }
         }
