@@ -347,6 +347,9 @@ fn run_render(args: RenderArgs) -> Result<()> {
         scene_hash,
         stop: None,
     };
+    if let penumbra::integrator::Integrator::Aov(_) = scene.integrator {
+        return render_aov(&mut scene, &args, spp, seed);
+    }
     if let Some((index, count)) = args.part {
         let plan = progressive::PartPlan {
             index,
@@ -405,6 +408,56 @@ fn run_render(args: RenderArgs) -> Result<()> {
         stats_json_path: args.stats.as_deref(),
         quiet: args.quiet,
     })
+}
+
+/// An `aov` scene: every channel group rendered with the same samples and written as named
+/// channels of one EXR (no progressive features: the run is one render per group).
+fn render_aov(scene: &mut Scene, args: &RenderArgs, spp: u32, seed: u64) -> Result<()> {
+    if args.resume
+        || args.part.is_some()
+        || args.checkpoint.is_some()
+        || args.checkpoint_every.is_some()
+        || args.time_limit.is_some()
+        || args.target_rel_error.is_some()
+        || args.variance
+        || args.preview.is_some()
+    {
+        bail!(
+            "the aov integrator renders its channels in one run: --resume, --part, \
+             --checkpoint, --time-limit, --target-rel-error, --variance and --preview do not \
+             apply"
+        );
+    }
+    let (channels, stats) =
+        penumbra::integrator::aov::render_channels(scene, spp, seed, args.threads)?;
+    let spp_attr = i32::try_from(spp).map_or(Attribute::Float(spp as f64), Attribute::Int);
+    exr::write_channels(
+        &args.output,
+        (scene.width, scene.height),
+        &channels,
+        &[
+            ("spp", spp_attr),
+            ("seed", Attribute::Text(seed.to_string())),
+            ("render_time_seconds", Attribute::Float(stats.seconds)),
+            (
+                "penumbra_version",
+                Attribute::Text(penumbra::VERSION.to_string()),
+            ),
+        ],
+    )?;
+    if !args.quiet {
+        let names: Vec<&str> = channels.iter().map(|(n, _)| n.as_str()).collect();
+        eprintln!(
+            "{}x{}, {} spp, {:.2} s, channels {} -> {}",
+            scene.width,
+            scene.height,
+            spp,
+            stats.seconds,
+            names.join(" "),
+            args.output.display()
+        );
+    }
+    Ok(())
 }
 
 /// What [`write_image`] writes: a render's film as EXR (+ variance), preview and statistics.

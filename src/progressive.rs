@@ -136,6 +136,13 @@ pub fn render_progressive(
 ) -> Result<(Progress, StopReason)> {
     // SPPM's iterations depend on each other (radii, photon counts): one pass of all of
     // them, which cannot be resumed.
+    if matches!(scene.integrator, crate::integrator::Integrator::Aov(_)) {
+        return Err(Error::Invalid(
+            "the aov integrator writes named channels, not an RGB image: render it with \
+             `penumbra render` (or integrator::aov::render_channels)"
+                .into(),
+        ));
+    }
     let sppm = matches!(scene.integrator, crate::integrator::Integrator::Sppm(_));
     let pass = if sppm {
         settings.spp.max(1)

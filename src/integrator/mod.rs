@@ -1,6 +1,7 @@
 //! Integrators: estimators of the radiance arriving along a camera ray, and the steps they
 //! share (emission where a ray ends, and one next-event estimation sample).
 
+pub mod aov;
 pub mod direct;
 pub mod path;
 pub mod ptracer;
@@ -49,6 +50,8 @@ impl std::ops::AddAssign for PathStats {
 pub enum Integrator {
     Path(PathIntegrator),
     Direct(DirectIntegrator),
+    /// Mitsuba's arbitrary output variables (depth, normals, ...; rendered group by group).
+    Aov(aov::AovIntegrator),
     /// Classic recursive ray tracing (penumbra's own).
     Whitted(WhittedIntegrator),
     VolPath(VolPathIntegrator),
@@ -74,6 +77,7 @@ impl Integrator {
             Integrator::Path(p) => p.li(scene, ray, sampler, stats),
             Integrator::Direct(d) => d.li(scene, ray, sampler, stats),
             Integrator::Whitted(w) => w.li(scene, ray, sampler, stats),
+            Integrator::Aov(a) => a.li(scene, ray, sampler, stats),
             Integrator::VolPath(v) => v.li(scene, ray, sampler, stats),
             Integrator::VolPathMis(v) => v.li(scene, ray, sampler, stats),
             // The render driver never asks a light tracer for camera-ray radiance.

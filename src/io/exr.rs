@@ -43,13 +43,12 @@ fn channel(name: &str, data: &[[f32; 3]], c: usize) -> AnyChannel<FlatSamples> {
 
 /// Writes `image` to `path` atomically: into a temporary file next to it, then renamed.
 pub fn write(path: &Path, image: &RgbImage, attributes: &[(&str, Attribute)]) -> Result<()> {
-    let out_err = |message: String| Error::Output {
-        path: path.to_path_buf(),
-        message,
-    };
     let n = image.width * image.height;
     if image.rgb.len() != n || image.variance.as_ref().is_some_and(|v| v.len() != n) {
-        return Err(out_err("pixel count does not match the resolution".into()));
+        return Err(Error::Output {
+            path: path.to_path_buf(),
+            message: "pixel count does not match the resolution".into(),
+        });
     }
     let mut channels = vec![
         channel("R", &image.rgb, 0),
@@ -61,6 +60,40 @@ pub fn write(path: &Path, image: &RgbImage, attributes: &[(&str, Attribute)]) ->
         channels.push(channel("variance.G", var, 1));
         channels.push(channel("variance.B", var, 2));
     }
+    write_any(path, (image.width, image.height), channels, attributes)
+}
+
+/// Writes named float channels (e.g. the `aov` integrator's `dd.T`, `nn.X`, ...) of a
+/// `width` × `height` image, each row-major from the top row, atomically.
+pub fn write_channels(
+    path: &Path,
+    (width, height): (usize, usize),
+    channels: &[(String, Vec<f32>)],
+    attributes: &[(&str, Attribute)],
+) -> Result<()> {
+    if channels.iter().any(|(_, v)| v.len() != width * height) {
+        return Err(Error::Output {
+            path: path.to_path_buf(),
+            message: "pixel count does not match the resolution".into(),
+        });
+    }
+    let channels = channels
+        .iter()
+        .map(|(name, v)| AnyChannel::new(name.as_str(), FlatSamples::F32(v.clone())))
+        .collect();
+    write_any(path, (width, height), channels, attributes)
+}
+
+fn write_any(
+    path: &Path,
+    size: (usize, usize),
+    channels: Vec<AnyChannel<FlatSamples>>,
+    attributes: &[(&str, Attribute)],
+) -> Result<()> {
+    let out_err = |message: String| Error::Output {
+        path: path.to_path_buf(),
+        message,
+    };
     let mut la = LayerAttributes::default();
     for (name, value) in attributes {
         let v = match value {
@@ -73,7 +106,7 @@ pub fn write(path: &Path, image: &RgbImage, attributes: &[(&str, Attribute)]) ->
         la.other.insert(Text::from(*name), v);
     }
     let layer = Layer::new(
-        (image.width, image.height),
+        size,
         la,
         Encoding::FAST_LOSSLESS,
         AnyChannels::sort(SmallVec::from_vec(channels)),
@@ -157,6 +190,36 @@ pub fn read(path: &Path) -> Result<RgbImage> {
         variance,
         attributes,
     })
+}
+
+/// Named channels of an image, each row-major from the top row.
+pub type NamedChannels = Vec<(String, Vec<f32>)>;
+
+/// Every channel of the first part of an EXR file, by name (as `write_channels` writes them),
+/// with the image's size.
+pub fn read_channels(path: &Path) -> Result<((usize, usize), NamedChannels)> {
+    let in_err = |message: String| Error::Image {
+        path: path.to_path_buf(),
+        message,
+    };
+    if let Err(cause) = std::fs::metadata(path) {
+        return Err(Error::Io {
+            path: path.to_path_buf(),
+            cause,
+        });
+    }
+    let image = read_all_flat_layers_from_file(path).map_err(|e| in_err(e.to_string()))?;
+    let layer = image
+        .layer_data
+        .first()
+        .ok_or_else(|| in_err("EXR has no layer".into()))?;
+    let channels = layer
+        .channel_data
+        .list
+        .iter()
+        .map(|c| (c.name.to_string(), c.sample_data.values_as_f32().collect()))
+        .collect();
+    Ok(((layer.size.width(), layer.size.height()), channels))
 }
 
 #[cfg(test)]

@@ -93,15 +93,20 @@ impl Scene {
     /// study's light-tracing entries, `penumbra render --integrator`).
     pub fn use_integrator(&mut self, kind: &str) -> Result<()> {
         use crate::integrator::{Integrator, ParticleTracer, PathIntegrator};
-        let (max_depth, rr_depth, hide_emitters) = match &self.integrator {
-            Integrator::Path(p) => (p.max_depth, p.rr_depth, p.hide_emitters),
-            Integrator::VolPath(p) => (p.max_depth, p.rr_depth, p.hide_emitters),
-            Integrator::VolPathMis(p) => (p.max_depth, p.rr_depth, p.hide_emitters),
-            Integrator::ParticleTracer(p) => (p.max_depth, p.rr_depth, p.hide_emitters),
-            Integrator::Sppm(p) => (p.max_depth, 5, false),
-            Integrator::Direct(d) => (2, 5, d.hide_emitters),
-            Integrator::Whitted(w) => (w.max_depth, 5, w.hide_emitters),
-        };
+        let (max_depth, rr_depth, hide_emitters) =
+            match &self.integrator {
+                Integrator::Path(p) => (p.max_depth, p.rr_depth, p.hide_emitters),
+                Integrator::VolPath(p) => (p.max_depth, p.rr_depth, p.hide_emitters),
+                Integrator::VolPathMis(p) => (p.max_depth, p.rr_depth, p.hide_emitters),
+                Integrator::ParticleTracer(p) => (p.max_depth, p.rr_depth, p.hide_emitters),
+                Integrator::Sppm(p) => (p.max_depth, 5, false),
+                Integrator::Direct(d) => (2, 5, d.hide_emitters),
+                Integrator::Whitted(w) => (w.max_depth, 5, w.hide_emitters),
+                Integrator::Aov(_) => return Err(Error::Invalid(
+                    "an aov scene cannot switch integrator (name one inside the aov integrator)"
+                        .into(),
+                )),
+            };
         self.integrator = match kind {
             "path" => Integrator::Path(PathIntegrator {
                 max_depth,

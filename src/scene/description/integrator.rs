@@ -44,6 +44,12 @@ pub enum IntegratorDesc {
         bsdf_samples: u32,
         hide_emitters: bool,
     },
+    /// Mitsuba's `aov`: `aovs` as (name, type) pairs (types: depth, position, geo_normal,
+    /// sh_normal, uv, albedo) and nested integrators by name.
+    Aov {
+        aovs: Vec<(String, String)>,
+        nested: Vec<(String, IntegratorDesc)>,
+    },
     /// penumbra's `whitted`: recursive ray tracing, direct light from every emitter
     /// (`emitter_samples` per area light), perfect reflection and refraction to `max_depth`.
     Whitted {
@@ -71,6 +77,65 @@ fn check_depths(o: &Object, max_depth: i64, rr_depth: i64) -> Result<()> {
         ));
     }
     Ok(())
+}
+
+/// Mitsuba's `aov` integrator: the `aovs` list of `name:type` pairs and nested integrators
+/// named by their `name` attribute.
+fn aov_desc(o: &Object) -> Result<IntegratorDesc> {
+    let mut p = Props::new(o);
+    let spec = p
+        .string("aovs")?
+        .map(|(s, _)| s.to_string())
+        .unwrap_or_default();
+    p.finish()?;
+    let mut aovs = Vec::new();
+    for item in spec.split(',').map(str::trim).filter(|s| !s.is_empty()) {
+        let bad =
+            |why: &str| Error::scene(&o.location, format!("{}: AOV '{item}': {why}", describe(o)));
+        let (name, kind) = item
+            .split_once(':')
+            .filter(|(n, k)| !n.is_empty() && !k.is_empty())
+            .ok_or_else(|| bad("expected name:type"))?;
+        if crate::integrator::aov::AovKind::from_name(kind).is_none() {
+            return Err(bad(
+                "unsupported type (penumbra supports depth, position, geo_normal, sh_normal, \
+                 uv and albedo)",
+            ));
+        }
+        aovs.push((name.to_string(), kind.to_string()));
+    }
+    let mut nested = Vec::new();
+    for Child { name, object: c } in &o.children {
+        if c.tag != "integrator" {
+            return Err(unexpected_child(o, c));
+        }
+        if matches!(c.plugin.as_str(), "aov" | "moment" | "ptracer" | "sppm") {
+            return Err(Error::scene(
+                &c.location,
+                format!("{} cannot be nested in an aov integrator", describe(c)),
+            ));
+        }
+        let name = name.clone().ok_or_else(|| {
+            Error::scene(
+                &c.location,
+                format!(
+                    "{} in an aov integrator needs a name (its channels' prefix)",
+                    describe(c)
+                ),
+            )
+        })?;
+        nested.push((name, integrator_desc(c)?.0));
+    }
+    if aovs.is_empty() && nested.is_empty() {
+        return Err(Error::scene(
+            &o.location,
+            format!(
+                "{} has no AOVs (give aovs=\"name:type,...\") and no nested integrator",
+                describe(o)
+            ),
+        ));
+    }
+    Ok(IntegratorDesc::Aov { aovs, nested })
 }
 
 /// The integrator, and whether it was wrapped in Mitsuba's `moment` integrator (which renders
@@ -107,6 +172,9 @@ pub(super) fn integrator_desc(o: &Object) -> Result<(IntegratorDesc, bool)> {
             )
         })?;
         return Ok((nested, true));
+    }
+    if o.plugin == "aov" {
+        return Ok((aov_desc(o)?, false));
     }
     no_children(o)?;
     let mut p = Props::new(o);
