@@ -153,12 +153,13 @@ fn simpson_rect(pdf: &impl Fn(Vec3) -> f64, ct0: f64, ct1: f64, p0: f64, p1: f64
     let w = |i: usize| simpson_weight(i, q);
     let (hc, hp) = ((ct1 - ct0) / q as f64, (p1 - p0) / q as f64);
     let mut acc = 0.0;
+    // (sin φ, cos φ) of the column nodes, once per rectangle rather than once per node.
+    let sin_cos: Vec<(f64, f64)> = (0..=q).map(|b| (p0 + hp * b as f64).sin_cos()).collect();
     for a in 0..=q {
         let ct = (ct0 + hc * a as f64).clamp(-1.0, 1.0);
         let st = (1.0 - ct * ct).max(0.0).sqrt();
-        for b in 0..=q {
-            let phi = p0 + hp * b as f64;
-            let d = Vec3::new((st * phi.cos()) as f32, (st * phi.sin()) as f32, ct as f32);
+        for (b, &(sin_phi, cos_phi)) in sin_cos.iter().enumerate() {
+            let d = Vec3::new((st * cos_phi) as f32, (st * sin_phi) as f32, ct as f32);
             let v = pdf(d);
             acc += w(a) * w(b) * if v.is_finite() { v } else { 0.0 };
         }
