@@ -390,12 +390,7 @@ fn run_render(args: RenderArgs) -> Result<()> {
         bar.set_position(p.samples * pixels)
     })?;
     bar.finish_and_clear();
-    let reason_text = match reason {
-        progressive::StopReason::SppReached => "spp reached",
-        progressive::StopReason::TimeLimit => "time limit",
-        progressive::StopReason::TargetError => "target error reached",
-        progressive::StopReason::Interrupted => "interrupted",
-    };
+    let reason_text = reason.as_str();
     write_image(&ImageOutput {
         output: &args.output,
         film: &progress.film,
@@ -430,20 +425,11 @@ fn render_aov(scene: &mut Scene, args: &RenderArgs, spp: u32, seed: u64) -> Resu
     }
     let (channels, stats) =
         penumbra::integrator::aov::render_channels(scene, spp, seed, args.threads)?;
-    let spp_attr = i32::try_from(spp).map_or(Attribute::Float(spp as f64), Attribute::Int);
     exr::write_channels(
         &args.output,
         (scene.width, scene.height),
         &channels,
-        &[
-            ("spp", spp_attr),
-            ("seed", Attribute::Text(seed.to_string())),
-            ("render_time_seconds", Attribute::Float(stats.seconds)),
-            (
-                "penumbra_version",
-                Attribute::Text(penumbra::VERSION.to_string()),
-            ),
-        ],
+        &render_attributes(spp as u64, seed, stats.seconds),
     )?;
     if !args.quiet {
         let names: Vec<&str> = channels.iter().map(|(n, _)| n.as_str()).collect();
@@ -458,6 +444,20 @@ fn render_aov(scene: &mut Scene, args: &RenderArgs, spp: u32, seed: u64) -> Resu
         );
     }
     Ok(())
+}
+
+/// The EXR header attributes every render writes: spp, seed, time and penumbra's version.
+fn render_attributes(spp: u64, seed: u64, seconds: f64) -> Vec<(&'static str, Attribute)> {
+    let spp_attr = i32::try_from(spp).map_or(Attribute::Float(spp as f64), Attribute::Int);
+    vec![
+        ("spp", spp_attr),
+        ("seed", Attribute::Text(seed.to_string())),
+        ("render_time_seconds", Attribute::Float(seconds)),
+        (
+            "penumbra_version",
+            Attribute::Text(penumbra::VERSION.to_string()),
+        ),
+    ]
 }
 
 /// What [`write_image`] writes: a render's film as EXR (+ variance), preview and statistics.
@@ -491,33 +491,22 @@ fn write_image(o: &ImageOutput) -> Result<()> {
     let rays_per_s = stats.path.rays as f64 / secs;
     let mean_len = stats.path.bounces as f64 / stats.paths.max(1) as f64;
     let rr_frac = stats.path.rr_terminated as f64 / stats.paths.max(1) as f64;
-    let spp_attr =
-        i32::try_from(spp_done).map_or(Attribute::Float(spp_done as f64), Attribute::Int);
-    exr::write(
-        o.output,
-        &image,
-        &[
-            ("spp", spp_attr),
-            ("seed", Attribute::Text(seed.to_string())),
-            ("render_time_seconds", Attribute::Float(stats.seconds)),
-            (
-                "penumbra_version",
-                Attribute::Text(penumbra::VERSION.to_string()),
-            ),
-            (
-                "nonfinite_samples",
-                Attribute::Float(stats.nonfinite as f64),
-            ),
-            ("rays_per_second", Attribute::Float(rays_per_s)),
-            (
-                "paths_per_second",
-                Attribute::Float(stats.paths as f64 / secs),
-            ),
-            ("mean_path_length", Attribute::Float(mean_len)),
-            ("rr_terminated_fraction", Attribute::Float(rr_frac)),
-            ("stop_reason", Attribute::Text(reason_text.into())),
-        ],
-    )?;
+    let mut attributes = render_attributes(spp_done, seed, stats.seconds);
+    attributes.extend([
+        (
+            "nonfinite_samples",
+            Attribute::Float(stats.nonfinite as f64),
+        ),
+        ("rays_per_second", Attribute::Float(rays_per_s)),
+        (
+            "paths_per_second",
+            Attribute::Float(stats.paths as f64 / secs),
+        ),
+        ("mean_path_length", Attribute::Float(mean_len)),
+        ("rr_terminated_fraction", Attribute::Float(rr_frac)),
+        ("stop_reason", Attribute::Text(reason_text.into())),
+    ]);
+    exr::write(o.output, &image, &attributes)?;
     if let Some(png) = o.preview {
         penumbra::io::png::write_preview(png, width, height, &image.rgb, 1.0)?;
     }

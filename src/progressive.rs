@@ -69,6 +69,18 @@ pub enum StopReason {
     Interrupted,
 }
 
+impl StopReason {
+    /// As the EXR header's `stop_reason` and the summary line say it.
+    pub fn as_str(self) -> &'static str {
+        match self {
+            StopReason::SppReached => "spp reached",
+            StopReason::TimeLimit => "time limit",
+            StopReason::TargetError => "target error reached",
+            StopReason::Interrupted => "interrupted",
+        }
+    }
+}
+
 /// The running state of a render: sums and counters.
 #[derive(Clone, Debug)]
 pub struct Progress {
