@@ -102,10 +102,16 @@ fn max_depth_zero_renders_black() {
 /// beside the front emitter (which see the wall in both cases).
 #[test]
 fn hide_emitters_passes_camera_rays_through_area_lights() {
-    let xml = |hide: bool| {
-        format!(
-            r#"<scene version="3.0.0">
-    <integrator type="path"><integer name="max_depth" value="2"/><boolean name="hide_emitters" value="{hide}"/></integrator>
+    // path, direct and whitted share the pass-through (integrator::pass_through_emitters)
+    for integrator in [
+        r#"type="path"><integer name="max_depth" value="2"/>"#,
+        r#"type="direct">"#,
+        r#"type="whitted"><integer name="max_depth" value="2"/>"#,
+    ] {
+        let xml = |hide: bool| {
+            format!(
+                r#"<scene version="3.0.0">
+    <integrator {integrator}<boolean name="hide_emitters" value="{hide}"/></integrator>
     <sensor type="perspective"><float name="fov" value="20"/>
         <transform name="to_world"><lookat origin="0,0,5" target="0,0,0" up="0,1,0"/></transform>
         <film type="hdrfilm"><integer name="width" value="9"/><integer name="height" value="9"/><rfilter type="box"/></film></sensor>
@@ -117,47 +123,48 @@ fn hide_emitters_passes_camera_rays_through_area_lights() {
     <shape type="rectangle"><transform name="to_world"><scale value="100"/><rotate x="1" angle="180"/><translate z="6"/></transform>
         <emitter type="area"><rgb name="radiance" value="1"/></emitter></shape>
 </scene>"#
-        )
-    };
-    // 4096 spp: a standard error of ~0.5% of the centre pixel, so a 3% error is ~6 se
-    let spp = 4096;
-    let shown = render_scene(&scene_from_str(&xml(false)), spp, 1, None)
-        .film
-        .image();
-    let hidden_out = render_scene(&scene_from_str(&xml(true)), spp, 1, None);
-    let hidden = hidden_out.film.image();
-    let centre = 4 * 9 + 4;
-    assert_eq!(shown[centre], [5.0; 3], "the emitter seen directly");
-    // Hidden, the centre sees the wall behind with its direct light: radiance ρ L (F_big −
-    // F_front), the point-to-parallel-square form factors of the big emitter (half-size 100
-    // at height 6) and of the front rectangle that shadows it (half-size 0.2 at height 1),
-    // averaged over the pixel's footprint on the wall. Had the pass-through used up a bounce,
-    // max_depth 2 would leave no NEE at the wall: exactly 0.
-    let half = 5.0 * (10.0f64).to_radians().tan() / 9.0;
-    let n = 16;
-    let mut expected = 0.0;
-    for i in 0..n {
-        for j in 0..n {
-            let x = -half + (i as f64 + 0.5) / n as f64 * 2.0 * half;
-            let y = -half + (j as f64 + 0.5) / n as f64 * 2.0 * half;
-            expected += 0.5
-                * (parallel_square_form_factor(x, y, 100.0, 6.0)
-                    - parallel_square_form_factor(x, y, 0.2, 1.0));
+            )
+        };
+        // 4096 spp: a standard error of ~0.5% of the centre pixel, so a 3% error is ~6 se
+        let spp = 4096;
+        let shown = render_scene(&scene_from_str(&xml(false)), spp, 1, None)
+            .film
+            .image();
+        let hidden_out = render_scene(&scene_from_str(&xml(true)), spp, 1, None);
+        let hidden = hidden_out.film.image();
+        let centre = 4 * 9 + 4;
+        assert_eq!(shown[centre], [5.0; 3], "the emitter seen directly");
+        // Hidden, the centre sees the wall behind with its direct light: radiance ρ L (F_big −
+        // F_front), the point-to-parallel-square form factors of the big emitter (half-size 100
+        // at height 6) and of the front rectangle that shadows it (half-size 0.2 at height 1),
+        // averaged over the pixel's footprint on the wall. Had the pass-through used up a bounce,
+        // max_depth 2 would leave no NEE at the wall: exactly 0.
+        let half = 5.0 * (10.0f64).to_radians().tan() / 9.0;
+        let n = 16;
+        let mut expected = 0.0;
+        for i in 0..n {
+            for j in 0..n {
+                let x = -half + (i as f64 + 0.5) / n as f64 * 2.0 * half;
+                let y = -half + (j as f64 + 0.5) / n as f64 * 2.0 * half;
+                expected += 0.5
+                    * (parallel_square_form_factor(x, y, 100.0, 6.0)
+                        - parallel_square_form_factor(x, y, 0.2, 1.0));
+            }
         }
+        expected /= (n * n) as f64;
+        let var = hidden_out.film.sample_variance()[centre];
+        for c in 0..3 {
+            let z = (hidden[centre][c] as f64 - expected) / (var[c] as f64 / spp as f64).sqrt();
+            assert!(
+                z.abs() < 4.0,
+                "{integrator} channel {c}: {} vs {expected:.5}, z = {z:.2}",
+                hidden[centre][c]
+            );
+        }
+        // Pixels that do not see the front emitter trace the same paths either way.
+        assert_eq!(shown[0], hidden[0]);
+        assert_eq!(shown[8 * 9 + 8], hidden[8 * 9 + 8]);
     }
-    expected /= (n * n) as f64;
-    let var = hidden_out.film.sample_variance()[centre];
-    for c in 0..3 {
-        let z = (hidden[centre][c] as f64 - expected) / (var[c] as f64 / spp as f64).sqrt();
-        assert!(
-            z.abs() < 4.0,
-            "channel {c}: {} vs {expected:.5}, z = {z:.2}",
-            hidden[centre][c]
-        );
-    }
-    // Pixels that do not see the front emitter trace the same paths either way.
-    assert_eq!(shown[0], hidden[0]);
-    assert_eq!(shown[8 * 9 + 8], hidden[8 * 9 + 8]);
 }
 
 /// The form factor from a point at (x, y, 0), facing +z, to the square [−a, a]² at height

@@ -14,7 +14,9 @@
 
 use crate::bsdf::Spectrum;
 use crate::geometry::Ray;
-use crate::integrator::{emission_at, emitter_pdf_at, sample_emitter, PathStats};
+use crate::integrator::{
+    emission_at, emitter_pdf_at, pass_through_emitters, sample_emitter, PathStats,
+};
 use crate::sampler::SampleStream;
 use crate::sampling::mis_power;
 use crate::scene::Scene;
@@ -28,10 +30,6 @@ pub struct DirectIntegrator {
     frac_emitter: f32,
     frac_bsdf: f32,
 }
-
-/// Area emitters a hidden camera ray passes through before giving up (a ray crossing that
-/// many stacked lights renders black).
-const MAX_SKIPPED_EMITTERS: u32 = 256;
 
 impl DirectIntegrator {
     /// At least one of the counts must be positive (the description checks it).
@@ -49,7 +47,7 @@ impl DirectIntegrator {
     pub fn li(
         &self,
         scene: &Scene,
-        mut ray: Ray,
+        ray: Ray,
         sampler: &mut SampleStream,
         stats: &mut PathStats,
     ) -> Spectrum {
@@ -58,19 +56,7 @@ impl DirectIntegrator {
         let mut hit = scene.intersect(&ray);
         if self.hide_emitters {
             // Camera rays pass through area emitters; the environment stays hidden.
-            let mut skipped = 0;
-            while let Some(si) = &hit {
-                if scene.shapes[si.shape as usize].emitter.is_none() {
-                    break;
-                }
-                skipped += 1;
-                if skipped > MAX_SKIPPED_EMITTERS {
-                    return result;
-                }
-                ray = Scene::spawn_ray(si, ray.d);
-                stats.rays += 1;
-                hit = scene.intersect(&ray);
-            }
+            hit = pass_through_emitters(scene, &ray, hit, stats);
         } else {
             result += emission_at(scene, hit.as_ref(), ray.d);
         }

@@ -117,6 +117,36 @@ pub(crate) fn emitter_pdf_at(
     }
 }
 
+/// Area emitters a hidden camera ray passes through before giving up (a ray crossing that
+/// many stacked lights renders black).
+const MAX_SKIPPED_EMITTERS: u32 = 256;
+
+/// Where a camera ray ends when it passes through area emitters (`hide_emitters`): `hit`
+/// (the ray's first hit) if it does not emit, else the first surface after the emitters
+/// that does not; `None` when the ray leaves the scene or crosses more than
+/// [`MAX_SKIPPED_EMITTERS`] of them.
+pub(crate) fn pass_through_emitters(
+    scene: &Scene,
+    ray: &Ray,
+    mut hit: Option<SurfaceInteraction>,
+    stats: &mut PathStats,
+) -> Option<SurfaceInteraction> {
+    let mut skipped = 0;
+    while let Some(si) = &hit {
+        if scene.shapes[si.shape as usize].emitter.is_none() {
+            break;
+        }
+        skipped += 1;
+        if skipped > MAX_SKIPPED_EMITTERS {
+            return None;
+        }
+        let next = Scene::spawn_ray(si, ray.d);
+        stats.rays += 1;
+        hit = scene.intersect(&next);
+    }
+    hit
+}
+
 /// One sample of next-event estimation at `si`, visibility tested: f · L / pdf, and the two
 /// densities its caller's MIS weight needs (the BSDF's only for non-delta emitters).
 pub(crate) struct EmitterSample {
@@ -139,13 +169,27 @@ pub(crate) fn sample_emitter(
     stats: &mut PathStats,
 ) -> Option<EmitterSample> {
     let ds = scene.sample_emitter_direction(si, u)?;
+    connect_emitter(scene, si, bsdf, wi, &ds, stats)
+}
+
+/// Next-event estimation towards the emitter point `ds` (sampled by the caller): the BSDF
+/// towards it and the shadow ray; `None` when it contributes nothing.
+#[inline]
+pub(crate) fn connect_emitter(
+    scene: &Scene,
+    si: &SurfaceInteraction,
+    bsdf: &ShadingBsdf,
+    wi: Vec3,
+    ds: &crate::emitter::DirectionSample,
+    stats: &mut PathStats,
+) -> Option<EmitterSample> {
     let wo = si.frame.to_local(ds.d);
     let f = bsdf.eval(wi, wo);
     if f == Spectrum::ZERO {
         return None;
     }
     stats.rays += 1;
-    if scene.occluded(&Scene::shadow_ray(si, &ds)) {
+    if scene.occluded(&Scene::shadow_ray(si, ds)) {
         return None;
     }
     Some(EmitterSample {

@@ -25,7 +25,7 @@
 
 use crate::bsdf::{BsdfSample, Spectrum};
 use crate::geometry::Ray;
-use crate::integrator::PathStats;
+use crate::integrator::{connect_emitter, pass_through_emitters, PathStats};
 use crate::material::shading::Node;
 use crate::material::ShadingBsdf;
 use crate::sampler::SampleStream;
@@ -109,26 +109,12 @@ impl WhittedIntegrator {
             weight: Spectrum::ONE,
             depth: 1,
         });
-        while let Some(Branch {
-            mut ray,
-            weight,
-            depth,
-        }) = stack.pop()
-        {
+        while let Some(Branch { ray, weight, depth }) = stack.pop() {
             stats.rays += 1;
             let mut hit = scene.intersect(&ray);
             if depth == 1 && self.hide_emitters {
                 // Camera rays pass through area emitters; the environment stays hidden.
-                let mut skipped = 0;
-                while let Some(si) = &hit {
-                    if scene.shapes[si.shape as usize].emitter.is_none() || skipped > 256 {
-                        break;
-                    }
-                    skipped += 1;
-                    ray = Scene::spawn_ray(si, ray.d);
-                    stats.rays += 1;
-                    hit = scene.intersect(&ray);
-                }
+                hit = pass_through_emitters(scene, &ray, hit, stats);
             } else {
                 result += weight * crate::integrator::emission_at(scene, hit.as_ref(), ray.d);
             }
@@ -156,16 +142,12 @@ impl WhittedIntegrator {
                         let Some(ds) = emitter.sample_direction(si.p, u, &scene.shapes) else {
                             continue;
                         };
-                        let wo = si.frame.to_local(ds.d);
-                        let f = bsdf.eval(wi, wo);
-                        if f == Spectrum::ZERO || ds.pdf.is_nan() || ds.pdf <= 0.0 {
+                        if ds.pdf.is_nan() || ds.pdf <= 0.0 {
                             continue;
                         }
-                        stats.rays += 1;
-                        if scene.occluded(&Scene::shadow_ray(&si, &ds)) {
-                            continue;
+                        if let Some(e) = connect_emitter(scene, &si, &bsdf, wi, &ds, stats) {
+                            sum += e.value;
                         }
-                        sum += f * ds.radiance / ds.pdf;
                     }
                     result += weight * sum / n as f32;
                 }
