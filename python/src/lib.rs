@@ -12,7 +12,7 @@ use numpy::{
     AllowTypeChange, PyArray1, PyArray3, PyArrayLike3, PyArrayMethods, PyUntypedArrayMethods,
 };
 use penumbra::io::exr::{self, Attribute, RgbImage};
-use penumbra::progressive::{self, ProgressiveSettings, StopReason};
+use penumbra::progressive::{self, ProgressiveSettings};
 use penumbra::study::{compare as cmp, experiment as ex};
 use pyo3::create_exception;
 use pyo3::exceptions::{PyException, PyValueError};
@@ -122,6 +122,22 @@ fn from_array(
     Ok((width, height, rgb))
 }
 
+/// The pixels of the variance array `name` of the image `of`, which is `size` (width, height).
+fn variance_of(
+    name: &str,
+    of: &str,
+    v: &PyArrayLike3<'_, f32, AllowTypeChange>,
+    (width, height): (usize, usize),
+) -> PyResult<Vec<[f32; 3]>> {
+    let (vw, vh, var) = from_array(name, v)?;
+    if (vw, vh) != (width, height) {
+        return Err(PyValueError::new_err(format!(
+            "{name} is {vw}x{vh}, {of} is {width}x{height}"
+        )));
+    }
+    Ok(var)
+}
+
 /// An image given either as a path to an OpenEXR file or as an (H, W, 3) array with an
 /// optional variance array of the same shape.
 fn image_arg(
@@ -145,18 +161,9 @@ fn image_arg(
         ))
     })?;
     let (width, height, rgb) = from_array(name, &array)?;
-    let variance = match variance {
-        Some(v) => {
-            let (vw, vh, var) = from_array(&format!("var_{name}"), &v)?;
-            if (vw, vh) != (width, height) {
-                return Err(PyValueError::new_err(format!(
-                    "var_{name} is {vw}x{vh}, {name} is {width}x{height}"
-                )));
-            }
-            Some(var)
-        }
-        None => None,
-    };
+    let variance = variance
+        .map(|v| variance_of(&format!("var_{name}"), name, &v, (width, height)))
+        .transpose()?;
     Ok((
         RgbImage {
             width,
@@ -300,15 +307,7 @@ impl Scene {
         stats.set_item("paths", progress.stats.paths)?;
         stats.set_item("mpaths_per_second", progress.stats.mpaths_per_second())?;
         stats.set_item("nonfinite_samples", progress.stats.nonfinite)?;
-        stats.set_item(
-            "stop_reason",
-            match reason {
-                StopReason::SppReached => "spp reached",
-                StopReason::TimeLimit => "time limit",
-                StopReason::TargetError => "target error reached",
-                StopReason::Interrupted => "interrupted",
-            },
-        )?;
+        stats.set_item("stop_reason", reason.as_str())?;
         self.stats = Some(stats.unbind());
         let image = to_array(py, film.width, film.height, &film.image())?;
         if variance {
@@ -482,18 +481,9 @@ fn write_exr(
     attributes: Option<&Bound<'_, PyDict>>,
 ) -> PyResult<()> {
     let (width, height, pixels) = from_array("rgb", &rgb)?;
-    let variance = match variance {
-        Some(v) => {
-            let (vw, vh, var) = from_array("variance", &v)?;
-            if (vw, vh) != (width, height) {
-                return Err(PyValueError::new_err(format!(
-                    "variance is {vw}x{vh}, rgb is {width}x{height}"
-                )));
-            }
-            Some(var)
-        }
-        None => None,
-    };
+    let variance = variance
+        .map(|v| variance_of("variance", "rgb", &v, (width, height)))
+        .transpose()?;
     let mut attrs: Vec<(String, Attribute)> = Vec::new();
     if let Some(d) = attributes {
         for (k, v) in d.iter() {

@@ -144,17 +144,8 @@ pub fn read(path: &Path) -> Result<RgbImage> {
         path: path.to_path_buf(),
         message,
     };
-    if let Err(cause) = std::fs::metadata(path) {
-        return Err(Error::Io {
-            path: path.to_path_buf(),
-            cause,
-        });
-    }
-    let image = read_all_flat_layers_from_file(path).map_err(|e| in_err(e.to_string()))?;
-    let layer = image
-        .layer_data
-        .first()
-        .ok_or_else(|| in_err("EXR has no layer".into()))?;
+    let image = read_flat(path)?;
+    let layer = &image.layer_data[0];
     let (width, height) = (layer.size.width(), layer.size.height());
     let get = |name: &str| -> Option<Vec<f32>> {
         layer
@@ -192,12 +183,8 @@ pub fn read(path: &Path) -> Result<RgbImage> {
     })
 }
 
-/// Named channels of an image, each row-major from the top row.
-pub type NamedChannels = Vec<(String, Vec<f32>)>;
-
-/// Every channel of the first part of an EXR file, by name (as `write_channels` writes them),
-/// with the image's size.
-pub fn read_channels(path: &Path) -> Result<((usize, usize), NamedChannels)> {
+/// Every layer of an EXR file as flat samples; an error unless it has at least one.
+fn read_flat(path: &Path) -> Result<FlatImage> {
     let in_err = |message: String| Error::Image {
         path: path.to_path_buf(),
         message,
@@ -209,10 +196,20 @@ pub fn read_channels(path: &Path) -> Result<((usize, usize), NamedChannels)> {
         });
     }
     let image = read_all_flat_layers_from_file(path).map_err(|e| in_err(e.to_string()))?;
-    let layer = image
-        .layer_data
-        .first()
-        .ok_or_else(|| in_err("EXR has no layer".into()))?;
+    if image.layer_data.is_empty() {
+        return Err(in_err("EXR has no layer".into()));
+    }
+    Ok(image)
+}
+
+/// Named channels of an image, each row-major from the top row.
+pub type NamedChannels = Vec<(String, Vec<f32>)>;
+
+/// Every channel of the first part of an EXR file, by name (as `write_channels` writes them),
+/// with the image's size.
+pub fn read_channels(path: &Path) -> Result<((usize, usize), NamedChannels)> {
+    let image = read_flat(path)?;
+    let layer = &image.layer_data[0];
     let channels = layer
         .channel_data
         .list
