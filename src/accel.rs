@@ -262,6 +262,11 @@ pub struct Accel {
 
 impl Accel {
     /// Collects every primitive of `shapes` and builds the hierarchy.
+    /// Whether the scene instances shape groups (two-level hierarchy).
+    pub fn has_instances(&self) -> bool {
+        !self.instances.is_empty()
+    }
+
     pub fn build(shapes: &[Shape]) -> Self {
         Self::build_with_instances(shapes, 0..shapes.len(), Vec::new(), Vec::new())
     }

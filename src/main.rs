@@ -147,8 +147,9 @@ struct RenderArgs {
     #[arg(short = 'D', value_name = "NAME=VALUE")]
     define: Vec<String>,
     /// Render with this integrator instead of the scene's: `path`, `ptracer` (light
-    /// tracing), `sppm` (photon mapping) or `whitted` (recursive ray tracing), with the scene
-    /// integrator's max_depth, rr_depth and hide_emitters.
+    /// tracing), `sppm` (photon mapping), `whitted` (recursive ray tracing) or `radiosity`
+    /// (with its defaults), with the scene integrator's max_depth, rr_depth and
+    /// hide_emitters.
     #[arg(long, value_name = "NAME")]
     integrator: Option<String>,
     /// Worker threads (default: one per core).

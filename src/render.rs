@@ -134,6 +134,10 @@ pub fn render(
     let total = (scene.width * scene.height) as u64 * settings.spp as u64;
     let done = AtomicU64::new(0);
     let start = Instant::now();
+    if let Integrator::Radiosity(r) = &scene.integrator {
+        // Solved within the render's time and threads (kept for further passes).
+        pool.install(|| r.prepare(scene, settings.seed));
+    }
     let results: Vec<TileResult> = pool.install(|| {
         tiles
             .par_iter()

@@ -66,7 +66,7 @@ fn fewest_allocations(scene: &penumbra::scene::Scene, spp: u32) -> u64 {
 
 #[test]
 fn rendering_allocates_nothing_per_sample() {
-    let mut scenes: Vec<_> = ["scenes", "scenes/mitsuba/cbox"]
+    let mut scenes: Vec<_> = ["scenes", "scenes/ladder", "scenes/mitsuba/cbox"]
         .iter()
         .flat_map(|dir| std::fs::read_dir(common::repo_path(dir)).expect("scene folder"))
         .map(|e| e.expect("entry").path())

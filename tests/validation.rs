@@ -181,7 +181,7 @@ fn negative_controls(
         Integrator::ParticleTracer(p) => Some(&mut p.max_depth),
         Integrator::Sppm(p) => Some(&mut p.max_depth),
         Integrator::Whitted(p) => Some(&mut p.max_depth),
-        Integrator::Direct(_) | Integrator::Aov(_) => None,
+        Integrator::Direct(_) | Integrator::Aov(_) | Integrator::Radiosity(_) => None,
     };
     if let Some(max_depth) = max_depth {
         if *max_depth != u32::MAX && *max_depth > 0 {

@@ -14,7 +14,11 @@ use penumbra::scene::Scene;
 /// A diffuse plane (reflectance 0.5) at y = 0 under a point light of intensity 4 at
 /// (0.3, 2, -0.2), seen from (0, 4, 3).
 fn plane_scene(max_depth: u32, extra: &str) -> Scene {
-    scene_from_str(&format!(
+    scene_from_str(&plane_xml(max_depth, extra))
+}
+
+fn plane_xml(max_depth: u32, extra: &str) -> String {
+    format!(
         r#"<scene version="3.0.0">
             <integrator type="whitted"><integer name="max_depth" value="{max_depth}"/></integrator>
             <sensor type="perspective">
@@ -32,7 +36,7 @@ fn plane_scene(max_depth: u32, extra: &str) -> Scene {
             </emitter>
             {extra}
         </scene>"#
-    ))
+    )
 }
 
 fn li(scene: &Scene, pixel: Vec2, stream: u64) -> Vec3 {
@@ -76,6 +80,61 @@ fn direct_light_of_a_point_light_is_the_analytic_value() {
     // max_depth 1: emitters seen directly only, and a point light cannot be seen.
     let scene = plane_scene(1, "");
     assert_eq!(li(&scene, Vec2::splat(8.0), 0), Vec3::ZERO);
+}
+
+/// `shadows` false (the ladder's "ray casting only"): a panel between the light and the
+/// plane casts no shadow, and every pixel keeps the analytic unoccluded value; with shadow
+/// rays the pixels behind it are black.
+#[test]
+fn without_shadows_an_occluder_casts_no_shadow() {
+    // A panel at y = 1 under the light (light at y = 2, plane at y = 0): its shadow on the
+    // plane is about 0.6 wide around (0.3, 0, −0.2).
+    let panel = r#"<shape type="rectangle">
+            <transform name="to_world"><scale value="0.3"/><rotate x="1" angle="90"/>
+                <translate x="0.3" y="1" z="-0.2"/></transform>
+            <bsdf type="diffuse"><rgb name="reflectance" value="0"/></bsdf>
+        </shape>"#;
+    let depth = r#"<integer name="max_depth" value="2"/>"#;
+    let xml = plane_xml(2, panel);
+    let no_shadows = scene_from_str(&xml.replace(
+        depth,
+        &format!(r#"{depth}<boolean name="shadows" value="false"/>"#),
+    ));
+    let shadows = scene_from_str(&xml);
+    let light = Vec3::new(0.3, 2.0, -0.2) - Vec3::new(0.0, 4.0, 3.0);
+    let (mut shadowed, mut checked) = (0, 0);
+    for y in 0..16 {
+        for x in 0..16 {
+            let pixel = Vec2::new(x as f32 + 0.5, y as f32 + 0.5);
+            let ray = shadows.camera.generate_ray(pixel / 16.0);
+            let Some(si) = shadows.intersect(&ray) else {
+                continue;
+            };
+            if si.p.y > -3.5 {
+                continue; // the panel itself (the plane is at y = -4 camera-relative)
+            }
+            let to_light = light - si.p;
+            let expected = 0.5 / std::f32::consts::PI * 4.0 * to_light.normalize().y
+                / to_light.length_squared();
+            let got = li(&no_shadows, pixel, 0);
+            assert!(
+                ((got - Vec3::splat(expected)) / expected)
+                    .abs()
+                    .max_element()
+                    < 1e-4,
+                "pixel ({x}, {y}) without shadows: {got} against {expected}"
+            );
+            checked += 1;
+            if li(&shadows, pixel, 0) == Vec3::ZERO {
+                shadowed += 1;
+            }
+        }
+    }
+    assert!(checked > 150, "{checked} plane pixels");
+    assert!(
+        shadowed >= 2,
+        "the panel shadows {shadowed} pixels with shadow rays"
+    );
 }
 
 #[test]

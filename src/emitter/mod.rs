@@ -115,6 +115,19 @@ pub enum Emitter {
 }
 
 impl Emitter {
+    /// The Mitsuba plugin name, for messages.
+    pub fn plugin_name(&self) -> &'static str {
+        match self {
+            Emitter::Area(_) => "area",
+            Emitter::Point(_) => "point",
+            Emitter::Spot(_) => "spot",
+            Emitter::Projector(_) => "projector",
+            Emitter::Directional(_) => "directional",
+            Emitter::Constant(_) => "constant",
+            Emitter::EnvMap(_) => "envmap",
+        }
+    }
+
     /// Samples a direction from `p_ref` towards the emitter. The pdf does not include the
     /// probability of choosing this emitter.
     pub fn sample_direction(

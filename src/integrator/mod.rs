@@ -5,6 +5,7 @@ pub mod aov;
 pub mod direct;
 pub mod path;
 pub mod ptracer;
+pub mod radiosity;
 pub mod sppm;
 pub mod volpath;
 pub mod volpathmis;
@@ -54,6 +55,9 @@ pub enum Integrator {
     Aov(aov::AovIntegrator),
     /// Classic recursive ray tracing (penumbra's own).
     Whitted(WhittedIntegrator),
+    /// Radiosity (penumbra's own): the render driver solves it before the first pass
+    /// ([`radiosity::RadiosityIntegrator::prepare`]).
+    Radiosity(radiosity::RadiosityIntegrator),
     VolPath(VolPathIntegrator),
     VolPathMis(VolPathMisIntegrator),
     /// Light tracing: not an estimator of camera-ray radiance, so [`Integrator::li`] does
@@ -78,6 +82,10 @@ impl Integrator {
             Integrator::Direct(d) => d.li(scene, ray, sampler, stats),
             Integrator::Whitted(w) => w.li(scene, ray, sampler, stats),
             Integrator::Aov(a) => a.li(scene, ray, sampler, stats),
+            Integrator::Radiosity(r) => match r.current() {
+                Some(solution) => r.li(scene, &solution, ray, sampler, stats),
+                None => Spectrum::ZERO,
+            },
             Integrator::VolPath(v) => v.li(scene, ray, sampler, stats),
             Integrator::VolPathMis(v) => v.li(scene, ray, sampler, stats),
             // The render driver never asks a light tracer for camera-ray radiance.

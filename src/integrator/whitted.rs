@@ -17,6 +17,9 @@
 //! `tests/whitted.rs` checks against the path tracer. With only delta lights and perfect
 //! specular surfaces the only randomness left is the pixel position.
 //!
+//! With `shadows` false (default true) no shadow ray is traced: every emitter lights every
+//! surface facing it, as in plain ray casting with local shading.
+//!
 //! Depth counts path segments as in Mitsuba's `path`: `max_depth` 1 shows emitters seen
 //! directly, 2 adds direct light at the first surface, each mirror or refraction bounce one
 //! more. Default 6, at most 20 (every glass interface doubles the rays). Delta lobes of
@@ -42,6 +45,9 @@ pub struct WhittedIntegrator {
     /// Samples per area emitter (and environment) at each shading point.
     pub emitter_samples: u32,
     pub hide_emitters: bool,
+    /// Shadow rays towards the emitters; without them (`shadows` false) every emitter
+    /// lights every surface facing it: the ladder's "ray casting only".
+    pub shadows: bool,
 }
 
 /// A ray still to trace: its weight and the depth of the vertex it will hit.
@@ -145,7 +151,9 @@ impl WhittedIntegrator {
                         if ds.pdf.is_nan() || ds.pdf <= 0.0 {
                             continue;
                         }
-                        if let Some(e) = connect_emitter(scene, &si, &bsdf, wi, &ds, stats) {
+                        if !self.shadows {
+                            sum += bsdf.eval(wi, si.frame.to_local(ds.d)) * ds.radiance / ds.pdf;
+                        } else if let Some(e) = connect_emitter(scene, &si, &bsdf, wi, &ds, stats) {
                             sum += e.value;
                         }
                     }

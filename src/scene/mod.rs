@@ -88,7 +88,8 @@ impl Scene {
     /// Replaces the integrator by `kind`, which takes the current one's `max_depth`,
     /// `rr_depth` and `hide_emitters`: `path`, `ptracer` (light tracing), `sppm` (photon
     /// mapping with its defaults: one photon per pixel per iteration, automatic radius,
-    /// α = 2/3) or `whitted` (one sample per area light). For rendering a
+    /// α = 2/3), `whitted` (one sample per area light) or `radiosity` (its defaults: 1024
+    /// patches, 1024 rays each, final gather). For rendering a
     /// scene written for the path tracer with a light-path integrator (the validation
     /// study's light-tracing entries, `penumbra render --integrator`).
     pub fn use_integrator(&mut self, kind: &str) -> Result<()> {
@@ -102,6 +103,7 @@ impl Scene {
                 Integrator::Sppm(p) => (p.max_depth, 5, false),
                 Integrator::Direct(d) => (2, 5, d.hide_emitters),
                 Integrator::Whitted(w) => (w.max_depth, 5, w.hide_emitters),
+                Integrator::Radiosity(_) => (8, 5, false),
                 Integrator::Aov(_) => return Err(Error::Invalid(
                     "an aov scene cannot switch integrator (name one inside the aov integrator)"
                         .into(),
@@ -153,12 +155,16 @@ impl Scene {
                     max_depth,
                     emitter_samples: 1,
                     hide_emitters,
+                    shadows: true,
                 })
             }
+            "radiosity" => Integrator::Radiosity(
+                crate::integrator::radiosity::RadiosityIntegrator::new(self, Default::default())?,
+            ),
             _ => {
                 return Err(Error::Invalid(format!(
-                    "unknown integrator '{kind}' (expected path, ptracer, sppm or whitted)"
-                )))
+                "unknown integrator '{kind}' (expected path, ptracer, sppm, whitted or radiosity)"
+            )))
             }
         };
         Ok(())

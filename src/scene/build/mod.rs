@@ -117,11 +117,19 @@ fn build_integrator(
             max_depth,
             emitter_samples,
             hide_emitters,
+            shadows,
         } => Integrator::Whitted(crate::integrator::WhittedIntegrator {
             max_depth,
             emitter_samples,
             hide_emitters,
+            shadows,
         }),
+        // The top-level radiosity integrator is made in `build`, once the scene exists.
+        IntegratorDesc::Radiosity(_) => {
+            return Err(Error::Invalid(
+                "radiosity cannot be nested in an aov integrator".into(),
+            ))
+        }
         IntegratorDesc::Direct {
             emitter_samples,
             bsdf_samples,
@@ -288,13 +296,11 @@ pub fn build(desc: &SceneDescription) -> Result<Scene> {
         .map(|m| medium(m, shift).map_err(|e| Error::within(&m.location, e)))
         .collect::<Result<Vec<_>>>()?;
     let world_origin = s.to_world.transform_point3(DVec3::ZERO).as_vec3();
-    let integrator = build_integrator(
-        &desc.integrator,
-        &camera,
-        !media.is_empty(),
-        width * height,
-        world_origin,
-    )?;
+    let integrator = match &desc.integrator {
+        // Replaced below: radiosity divides the built scene into patches.
+        IntegratorDesc::Radiosity(_) => Integrator::Direct(DirectIntegrator::new(1, 1, false)),
+        d => build_integrator(d, &camera, !media.is_empty(), width * height, world_origin)?,
+    };
     let (sampler, rounded) = Sampler::new(s.sampler.kind, s.sampler.sample_count);
     warnings.extend(rounded);
     let shadow_passthrough = !media.is_empty()
@@ -309,7 +315,7 @@ pub fn build(desc: &SceneDescription) -> Result<Scene> {
                     }
             )
         });
-    Ok(Scene {
+    let mut scene = Scene {
         shadow_passthrough,
         shapes,
         materials: materials.materials,
@@ -332,7 +338,13 @@ pub fn build(desc: &SceneDescription) -> Result<Scene> {
         bounding_sphere,
         media,
         camera_medium: s.medium.map(|i| i as u32),
-    })
+    };
+    if let IntegratorDesc::Radiosity(params) = &desc.integrator {
+        scene.integrator = Integrator::Radiosity(
+            crate::integrator::radiosity::RadiosityIntegrator::new(&scene, params.clone())?,
+        );
+    }
+    Ok(scene)
 }
 
 /// A medium of the scene; `shift` maps world space to the camera-relative space the scene is

@@ -56,7 +56,12 @@ pub enum IntegratorDesc {
         max_depth: u32,
         emitter_samples: u32,
         hide_emitters: bool,
+        /// false: direct light without shadow rays (the ladder's "ray casting only").
+        shadows: bool,
     },
+    /// penumbra's `radiosity`: diffuse patches, Monte Carlo form factors, progressive
+    /// refinement.
+    Radiosity(crate::integrator::radiosity::RadiosityParams),
 }
 
 /// Mitsuba's bounds on `max_depth` (−1: unbounded) and `rr_depth`.
@@ -310,6 +315,7 @@ pub(super) fn integrator_desc(o: &Object) -> Result<(IntegratorDesc, bool)> {
             let max_depth = p.int("max_depth", 6)?;
             let emitter_samples = p.int("emitter_samples", 1)?;
             let hide_emitters = p.boolean("hide_emitters", false)?;
+            let shadows = p.boolean("shadows", true)?;
             p.finish()?;
             if !(1..=MAX_DEPTH as i64).contains(&max_depth) {
                 return Err(Error::scene(
@@ -334,7 +340,65 @@ pub(super) fn integrator_desc(o: &Object) -> Result<(IntegratorDesc, bool)> {
                 max_depth: max_depth as u32,
                 emitter_samples: emitter_samples as u32,
                 hide_emitters,
+                shadows,
             }
+        }
+        "radiosity" => {
+            use crate::integrator::radiosity::{RadiosityParams, Shading};
+            let d = RadiosityParams::default();
+            let patch_count = p.int("patch_count", d.patch_count as i64)?;
+            let patch_size = p.float("patch_size", 0.0)?;
+            let rays_per_patch = p.int("rays_per_patch", d.rays_per_patch as i64)?;
+            let residual = p.float("residual", d.residual as f64)?;
+            let shading = p.string("shading")?;
+            p.finish()?;
+            let bad = |msg: String| Err(Error::scene(&o.location, msg));
+            let shading = match shading {
+                None => d.shading,
+                Some((name, loc)) => match Shading::from_name(name) {
+                    Some(s) => s,
+                    None => {
+                        return Err(Error::scene(
+                            loc,
+                            format!(
+                                "shading of {} must be 'flat' or 'gather', got '{name}'",
+                                describe(o)
+                            ),
+                        ))
+                    }
+                },
+            };
+            if !(1..=1 << 22).contains(&patch_count) {
+                return bad(format!(
+                    "patch_count of {} must be in [1, 4194304], got {patch_count}",
+                    describe(o)
+                ));
+            }
+            if !(patch_size >= 0.0 && patch_size.is_finite()) {
+                return bad(format!(
+                    "patch_size of {} must be >= 0 (0: use patch_count), got {patch_size}",
+                    describe(o)
+                ));
+            }
+            if !(1..=1 << 20).contains(&rays_per_patch) {
+                return bad(format!(
+                    "rays_per_patch of {} must be in [1, 1048576], got {rays_per_patch}",
+                    describe(o)
+                ));
+            }
+            if !(residual > 0.0 && residual < 1.0) {
+                return bad(format!(
+                    "residual of {} must be in (0, 1), got {residual}",
+                    describe(o)
+                ));
+            }
+            IntegratorDesc::Radiosity(RadiosityParams {
+                patch_count: patch_count as u32,
+                patch_size: patch_size as f32,
+                rays_per_patch: rays_per_patch as u32,
+                residual: residual as f32,
+                shading,
+            })
         }
         _ => return Err(unsupported_plugin(o)),
     };
