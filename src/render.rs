@@ -61,7 +61,13 @@ struct TileResult {
     nonfinite: u64,
 }
 
-fn render_tile(scene: &Scene, settings: &RenderSettings, x0: usize, y0: usize) -> TileResult {
+fn render_tile(
+    scene: &Scene,
+    integrator: &Integrator,
+    settings: &RenderSettings,
+    x0: usize,
+    y0: usize,
+) -> TileResult {
     let w = TILE_SIZE.min(scene.width - x0);
     let h = TILE_SIZE.min(scene.height - y0);
     let mut tile = FilmTile::new(x0, y0, w, h, scene.filter);
@@ -87,7 +93,7 @@ fn render_tile(scene: &Scene, settings: &RenderSettings, x0: usize, y0: usize) -
                 } else {
                     scene.camera.generate_ray(pos * inv_res)
                 };
-                let l = scene.integrator.li(scene, ray, &mut sampler, &mut stats);
+                let l = integrator.li(scene, ray, &mut sampler, &mut stats);
                 if l.is_finite() {
                     tile.add_sample(pos, l);
                 } else {
@@ -134,15 +140,22 @@ pub fn render(
     let total = (scene.width * scene.height) as u64 * settings.spp as u64;
     let done = AtomicU64::new(0);
     let start = Instant::now();
-    if let Integrator::Radiosity(r) = &scene.integrator {
-        // Solved within the render's time and threads (kept for further passes).
-        pool.install(|| r.prepare(scene, settings.seed));
-    }
+    let prepared;
+    let integrator = match &scene.integrator {
+        Integrator::Radiosity(r) => {
+            // Solved within the render's time and threads (kept for further passes), and
+            // handed to the samples directly rather than through the integrator's lock.
+            let solution = pool.install(|| r.prepare(scene, settings.seed));
+            prepared = Integrator::Radiosity(r.with_solution(solution));
+            &prepared
+        }
+        i => i,
+    };
     let results: Vec<TileResult> = pool.install(|| {
         tiles
             .par_iter()
             .map(|&(x, y)| {
-                let r = render_tile(scene, settings, x, y);
+                let r = render_tile(scene, integrator, settings, x, y);
                 let pixels = TILE_SIZE.min(scene.width - x) * TILE_SIZE.min(scene.height - y);
                 let n = pixels as u64 * settings.spp as u64;
                 progress(done.fetch_add(n, Ordering::Relaxed) + n, total);

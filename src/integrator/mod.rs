@@ -82,10 +82,7 @@ impl Integrator {
             Integrator::Direct(d) => d.li(scene, ray, sampler, stats),
             Integrator::Whitted(w) => w.li(scene, ray, sampler, stats),
             Integrator::Aov(a) => a.li(scene, ray, sampler, stats),
-            Integrator::Radiosity(r) => match r.current() {
-                Some(solution) => r.li(scene, &solution, ray, sampler, stats),
-                None => Spectrum::ZERO,
-            },
+            Integrator::Radiosity(r) => r.li_with_solution(scene, ray, sampler, stats),
             Integrator::VolPath(v) => v.li(scene, ray, sampler, stats),
             Integrator::VolPathMis(v) => v.li(scene, ray, sampler, stats),
             // The render driver never asks a light tracer for camera-ray radiance.

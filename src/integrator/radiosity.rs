@@ -593,6 +593,9 @@ pub struct RadiosityIntegrator {
     pub params: RadiosityParams,
     pub layout: Arc<Layout>,
     solution: Arc<RwLock<Option<Arc<Solution>>>>,
+    /// The solution of the render under way, read without locking
+    /// ([`RadiosityIntegrator::with_solution`]).
+    fixed: Option<Arc<Solution>>,
 }
 
 impl RadiosityIntegrator {
@@ -604,6 +607,7 @@ impl RadiosityIntegrator {
             params,
             layout,
             solution: Arc::new(RwLock::new(None)),
+            fixed: None,
         })
     }
 
@@ -618,12 +622,46 @@ impl RadiosityIntegrator {
         s
     }
 
+    /// A copy that renders with `solution` (the render driver's, for one render).
+    pub fn with_solution(&self, solution: Arc<Solution>) -> Self {
+        RadiosityIntegrator {
+            fixed: Some(solution),
+            ..self.clone()
+        }
+    }
+
+    /// The solution [`RadiosityIntegrator::li`] uses: the one given to
+    /// [`RadiosityIntegrator::with_solution`], else the one kept from the last
+    /// [`RadiosityIntegrator::prepare`].
+    pub fn solution(&self) -> Option<Arc<Solution>> {
+        self.fixed.clone().or_else(|| self.current())
+    }
+
     /// The solution kept from the last [`RadiosityIntegrator::prepare`].
     pub fn current(&self) -> Option<Arc<Solution>> {
         self.solution
             .read()
             .unwrap_or_else(|e| e.into_inner())
             .clone()
+    }
+
+    /// The radiance along a camera ray with the solution of [`RadiosityIntegrator::solution`]
+    /// (0 before any).
+    #[inline]
+    pub fn li_with_solution(
+        &self,
+        scene: &Scene,
+        ray: Ray,
+        sampler: &mut SampleStream,
+        stats: &mut PathStats,
+    ) -> Spectrum {
+        match &self.fixed {
+            Some(sol) => self.li(scene, sol, ray, sampler, stats),
+            None => match self.current() {
+                Some(sol) => self.li(scene, &sol, ray, sampler, stats),
+                None => Spectrum::ZERO,
+            },
+        }
     }
 
     pub fn li(
