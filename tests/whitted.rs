@@ -47,12 +47,28 @@ fn li(scene: &Scene, pixel: Vec2, stream: u64) -> Vec3 {
         .li(scene, ray, &mut sampler, &mut PathStats::default())
 }
 
+/// The plane's direct light from the point light at the camera-relative point `p`:
+/// (ρ/π) I cos θ / r². (The scene is built around the camera: the light sits at its
+/// position minus the camera's.)
+fn analytic_direct(p: Vec3) -> f32 {
+    let to_light = Vec3::new(0.3, 2.0, -0.2) - Vec3::new(0.0, 4.0, 3.0) - p;
+    0.5 / std::f32::consts::PI * 4.0 * to_light.normalize().y / to_light.length_squared()
+}
+
+/// Asserts that `got` is `expected` in every channel to 1e-4 relative.
+fn assert_close(got: Vec3, expected: f32, what: &str) {
+    assert!(
+        ((got - Vec3::splat(expected)) / expected)
+            .abs()
+            .max_element()
+            < 1e-4,
+        "{what}: {got} against {expected}"
+    );
+}
+
 #[test]
 fn direct_light_of_a_point_light_is_the_analytic_value() {
     let scene = plane_scene(2, "");
-    // The scene is built around the camera: the light sits at its position minus the
-    // camera's.
-    let light = Vec3::new(0.3, 2.0, -0.2) - Vec3::new(0.0, 4.0, 3.0);
     let mut checked = 0;
     for y in 0..16 {
         for x in 0..16 {
@@ -61,18 +77,8 @@ fn direct_light_of_a_point_light_is_the_analytic_value() {
             let Some(si) = scene.intersect(&ray) else {
                 continue;
             };
-            let to_light = light - si.p;
-            let r2 = to_light.length_squared();
-            let cos = to_light.normalize().y;
-            let expected = 0.5 / std::f32::consts::PI * 4.0 * cos / r2;
             let got = li(&scene, pixel, 0);
-            assert!(
-                ((got - Vec3::splat(expected)) / expected)
-                    .abs()
-                    .max_element()
-                    < 1e-4,
-                "pixel ({x}, {y}): {got} against {expected}"
-            );
+            assert_close(got, analytic_direct(si.p), &format!("pixel ({x}, {y})"));
             checked += 1;
         }
     }
@@ -101,7 +107,6 @@ fn without_shadows_an_occluder_casts_no_shadow() {
         &format!(r#"{depth}<boolean name="shadows" value="false"/>"#),
     ));
     let shadows = scene_from_str(&xml);
-    let light = Vec3::new(0.3, 2.0, -0.2) - Vec3::new(0.0, 4.0, 3.0);
     let (mut shadowed, mut checked) = (0, 0);
     for y in 0..16 {
         for x in 0..16 {
@@ -113,16 +118,11 @@ fn without_shadows_an_occluder_casts_no_shadow() {
             if si.p.y > -3.5 {
                 continue; // the panel itself (the plane is at y = -4 camera-relative)
             }
-            let to_light = light - si.p;
-            let expected = 0.5 / std::f32::consts::PI * 4.0 * to_light.normalize().y
-                / to_light.length_squared();
             let got = li(&no_shadows, pixel, 0);
-            assert!(
-                ((got - Vec3::splat(expected)) / expected)
-                    .abs()
-                    .max_element()
-                    < 1e-4,
-                "pixel ({x}, {y}) without shadows: {got} against {expected}"
+            assert_close(
+                got,
+                analytic_direct(si.p),
+                &format!("pixel ({x}, {y}) without shadows"),
             );
             checked += 1;
             if li(&shadows, pixel, 0) == Vec3::ZERO {
