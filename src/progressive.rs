@@ -88,9 +88,11 @@ pub struct Progress {
     pub film: Film,
     /// The exact sums the passes are added to.
     pub exact: ExactFilm,
-    /// Samples per pixel drawn so far.
+    /// Samples per pixel drawn so far (an SPPM render's iterations).
     pub samples: u64,
     pub stats: RenderStats,
+    /// An SPPM render's state (its film is made from it, not summed).
+    pub sppm: Option<crate::integrator::sppm::SppmState>,
 }
 
 /// Minimum samples per pixel before a target error is trusted (variance estimates from fewer
@@ -146,8 +148,6 @@ pub fn render_progressive(
     resume: Option<Checkpoint>,
     on_pass: &(dyn Fn(&Progress) + Sync),
 ) -> Result<(Progress, StopReason)> {
-    // SPPM's iterations depend on each other (radii, photon counts): one pass of all of
-    // them, which cannot be resumed.
     if matches!(scene.integrator, crate::integrator::Integrator::Aov(_)) {
         return Err(Error::Invalid(
             "the aov integrator writes named channels, not an RGB image: render it with \
@@ -155,27 +155,50 @@ pub fn render_progressive(
                 .into(),
         ));
     }
-    let sppm = matches!(scene.integrator, crate::integrator::Integrator::Sppm(_));
-    let pass = if sppm {
-        settings.spp.max(1)
-    } else {
-        pass_spp(scene.width, scene.height)
+    // SPPM's iterations depend on each other (radii, photon counts): its passes continue a
+    // state, which checkpoints save, instead of adding films.
+    let sppm = match &scene.integrator {
+        crate::integrator::Integrator::Sppm(s) => Some(s),
+        _ => None,
     };
-    if sppm && resume.is_some() {
+    if sppm.is_some() && settings.target_rel_error.is_some() {
         return Err(Error::Invalid(
-            "an sppm render cannot be resumed (its per-pixel radii and photon counts are not \
-             checkpointed)"
+            "an sppm render has no per-pixel variance to estimate its error from: use --spp \
+             or --time-limit instead of a target error"
                 .into(),
         ));
     }
+    let pass = pass_spp(scene.width, scene.height);
     let mut progress = match resume {
         Some(c) => {
             c.check_matches(scene, settings, pass)?;
-            Progress {
-                film: c.exact.to_film(scene.filter),
-                exact: c.exact,
-                samples: c.samples,
-                stats: c.stats,
+            match (sppm, c.sppm) {
+                (Some(_), Some(state)) => Progress {
+                    film: state.film(scene),
+                    exact: c.exact,
+                    samples: c.samples,
+                    stats: c.stats,
+                    sppm: Some(state),
+                },
+                (None, None) => Progress {
+                    film: c.exact.to_film(scene.filter),
+                    exact: c.exact,
+                    samples: c.samples,
+                    stats: c.stats,
+                    sppm: None,
+                },
+                (Some(_), None) => {
+                    return Err(Error::Invalid(
+                        "cannot resume: the checkpoint holds a render of another integrator, \
+                         not sppm"
+                            .into(),
+                    ))
+                }
+                (None, Some(_)) => {
+                    return Err(Error::Invalid(
+                        "cannot resume: the checkpoint holds an sppm render".into(),
+                    ))
+                }
             }
         }
         None => Progress {
@@ -183,6 +206,7 @@ pub fn render_progressive(
             exact: ExactFilm::new(scene.width, scene.height),
             samples: 0,
             stats: RenderStats::default(),
+            sppm: sppm.map(|s| crate::integrator::sppm::SppmState::new(scene, s)),
         },
     };
     let start = Instant::now();
@@ -211,24 +235,33 @@ pub fn render_progressive(
             }
         }
         let spp = (pass as u64).min(settings.spp as u64 - progress.samples) as u32;
-        let out = render(
-            scene,
-            &RenderSettings {
-                spp,
-                seed: settings.seed,
-                threads: settings.threads,
-                sampler: None,
-                first_sample: progress.samples,
-            },
-            &|_, _| {},
-        )?;
-        progress.exact.add(&out.film).map_err(Error::Invalid)?;
-        progress.film = progress.exact.to_film(scene.filter);
+        let pass_settings = RenderSettings {
+            spp,
+            seed: settings.seed,
+            threads: settings.threads,
+            sampler: None,
+            first_sample: progress.samples,
+        };
+        let stats = match (sppm, progress.sppm.as_mut()) {
+            (Some(integrator), Some(state)) => {
+                let pool = crate::render::thread_pool(settings.threads)?;
+                let stats =
+                    integrator.iterate(scene, &pass_settings, &pool, state, spp as u64, &|_, _| {});
+                progress.film = state.film(scene);
+                stats
+            }
+            _ => {
+                let out = render(scene, &pass_settings, &|_, _| {})?;
+                progress.exact.add(&out.film).map_err(Error::Invalid)?;
+                progress.film = progress.exact.to_film(scene.filter);
+                out.stats
+            }
+        };
         progress.samples += spp as u64;
-        progress.stats.paths += out.stats.paths;
-        progress.stats.path += out.stats.path;
-        progress.stats.nonfinite += out.stats.nonfinite;
-        progress.stats.seconds += out.stats.seconds;
+        progress.stats.paths += stats.paths;
+        progress.stats.path += stats.path;
+        progress.stats.nonfinite += stats.nonfinite;
+        progress.stats.seconds += stats.seconds;
         on_pass(&progress);
         if let Some(cp) = &settings.checkpoint {
             if last_checkpoint.elapsed() >= cp.every {
@@ -286,9 +319,14 @@ pub struct Checkpoint {
     pub stats: RenderStats,
     pub filter: Filter,
     pub exact: ExactFilm,
+    /// An SPPM render's state (its `exact` film is then empty).
+    pub sppm: Option<crate::integrator::sppm::SppmState>,
 }
 
-const MAGIC: &[u8; 8] = b"PNBRCKP3";
+const MAGIC: &[u8; 8] = b"PNBRCKP4";
+
+/// An SPPM pixel in a checkpoint: L_d (3), N, τ (3), radius, as f64.
+const SPPM_PIXEL_BYTES: usize = 64;
 
 impl Checkpoint {
     fn from_progress(p: &Progress, s: &ProgressiveSettings, pass_spp: u32, scene: &Scene) -> Self {
@@ -306,6 +344,7 @@ impl Checkpoint {
             stats: p.stats,
             filter: scene.filter,
             exact: p.exact.clone(),
+            sppm: p.sppm.clone(),
         }
     }
 
@@ -406,6 +445,29 @@ impl Checkpoint {
                 buf.extend_from_slice(&v.to_le_bytes());
             }
         }
+        match &self.sppm {
+            None => buf.push(0),
+            Some(st) => {
+                buf.push(1);
+                buf.extend_from_slice(&st.iterations.to_le_bytes());
+                buf.extend_from_slice(&st.photons_emitted.to_le_bytes());
+                for i in 0..st.ld.len() {
+                    let (ld, tau) = (st.ld[i], st.tau[i]);
+                    for v in [
+                        ld.x,
+                        ld.y,
+                        ld.z,
+                        st.big_n[i],
+                        tau.x,
+                        tau.y,
+                        tau.z,
+                        st.radius[i],
+                    ] {
+                        buf.extend_from_slice(&v.to_le_bytes());
+                    }
+                }
+            }
+        }
         let checksum = fnv1a(&buf, 0xcbf2_9ce4_8422_2325);
         buf.extend_from_slice(&checksum.to_le_bytes());
         let name = path
@@ -480,7 +542,9 @@ impl Checkpoint {
         let mut u = || r.u64().ok_or_else(|| bad("truncated"));
         let (paths, rays, bounces, rr, nonfinite) = (u()?, u()?, u()?, u()?, u()?);
         let seconds = r.f64().ok_or_else(|| bad("truncated"))?;
-        if r.b.len() - r.pos != pixels * EXACT_VALUES * 16 {
+        let left = r.b.len() - r.pos;
+        let film_bytes = pixels * EXACT_VALUES * 16;
+        if left != film_bytes + 1 && left != film_bytes + 1 + 16 + pixels * SPPM_PIXEL_BYTES {
             return Err(bad("size does not match the resolution"));
         }
         let mut exact = ExactFilm::new(width as usize, height as usize);
@@ -490,6 +554,36 @@ impl Checkpoint {
                 *v = r.i128().ok_or_else(|| bad("truncated"))?;
             }
         }
+        let sppm = match r.take(1).ok_or_else(|| bad("truncated"))?[0] {
+            0 => None,
+            1 => {
+                let mut u = || r.u64().ok_or_else(|| bad("truncated"));
+                let (iterations, photons_emitted) = (u()?, u()?);
+                let mut st = crate::integrator::sppm::SppmState {
+                    iterations,
+                    photons_emitted,
+                    ld: Vec::with_capacity(pixels),
+                    big_n: Vec::with_capacity(pixels),
+                    tau: Vec::with_capacity(pixels),
+                    radius: Vec::with_capacity(pixels),
+                };
+                for _ in 0..pixels {
+                    let mut v = [0.0f64; 8];
+                    for x in v.iter_mut() {
+                        *x = r.f64().ok_or_else(|| bad("truncated"))?;
+                    }
+                    if !v.iter().all(|x| x.is_finite()) || v[3] < 0.0 || v[7] < 0.0 {
+                        return Err(bad("sppm state"));
+                    }
+                    st.ld.push(glam::DVec3::new(v[0], v[1], v[2]));
+                    st.big_n.push(v[3]);
+                    st.tau.push(glam::DVec3::new(v[4], v[5], v[6]));
+                    st.radius.push(v[7]);
+                }
+                Some(st)
+            }
+            _ => return Err(bad("unknown section")),
+        };
         if pass_spp == 0 || sampler_points == 0 {
             return Err(bad("zero pass size"));
         }
@@ -523,6 +617,7 @@ impl Checkpoint {
             },
             filter,
             exact,
+            sppm,
         })
     }
 
@@ -586,6 +681,14 @@ pub fn render_part(
     threads: Option<usize>,
     scene_hash: u64,
 ) -> Result<Checkpoint> {
+    if matches!(scene.integrator, crate::integrator::Integrator::Sppm(_)) {
+        return Err(Error::Invalid(
+            "an sppm render cannot be split into parts (each iteration continues the \
+             previous one's radii and photon counts): render it in one process, with \
+             checkpoints"
+                .into(),
+        ));
+    }
     let pass = pass_spp(scene.width, scene.height);
     let (a, b) = part_range(plan, pass)?;
     let mut exact = ExactFilm::new(scene.width, scene.height);
@@ -625,6 +728,7 @@ pub fn render_part(
         stats,
         filter: scene.filter,
         exact,
+        sppm: None,
     })
 }
 
@@ -766,6 +870,7 @@ pub fn merge_parts(
         stats,
         filter: first.filter,
         exact: merged,
+        sppm: None,
     })
 }
 

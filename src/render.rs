@@ -109,6 +109,20 @@ fn render_tile(
     }
 }
 
+/// A pool of `threads` workers (default: one per core).
+pub fn thread_pool(threads: Option<usize>) -> Result<rayon::ThreadPool> {
+    let mut builder = rayon::ThreadPoolBuilder::new();
+    if let Some(n) = threads {
+        if n == 0 {
+            return Err(Error::Invalid("--threads must be at least 1".into()));
+        }
+        builder = builder.num_threads(n);
+    }
+    builder
+        .build()
+        .map_err(|e| Error::Invalid(format!("cannot start worker threads: {e}")))
+}
+
 /// Renders `scene` at `settings.spp` samples per pixel. `progress(done, total)` is called
 /// (from worker threads) as samples complete.
 pub fn render(
@@ -116,16 +130,7 @@ pub fn render(
     settings: &RenderSettings,
     progress: &(dyn Fn(u64, u64) + Sync),
 ) -> Result<RenderOutput> {
-    let mut builder = rayon::ThreadPoolBuilder::new();
-    if let Some(n) = settings.threads {
-        if n == 0 {
-            return Err(Error::Invalid("--threads must be at least 1".into()));
-        }
-        builder = builder.num_threads(n);
-    }
-    let pool = builder
-        .build()
-        .map_err(|e| Error::Invalid(format!("cannot start worker threads: {e}")))?;
+    let pool = thread_pool(settings.threads)?;
     match &scene.integrator {
         Integrator::ParticleTracer(pt) => {
             return Ok(render_particles(scene, pt, settings, &pool, progress))

@@ -262,3 +262,122 @@ fn converges_to_the_path_traced_cornell_box() {
         );
     }
 }
+
+/// An SPPM render stopped after its first pass and resumed from the checkpoint is the render
+/// run straight through, bit for bit (each pixel's L_d, N, τ and radius are saved, and the
+/// iterations are numbered on); checkpoints of other integrators, a target error and
+/// `--part` are refused in one line.
+#[test]
+fn checkpointed_and_resumed_bit_identical() {
+    use penumbra::progressive::{
+        pass_spp, render_part, render_progressive, Checkpoint, Checkpointing, ErrorTarget,
+        PartPlan, ProgressiveSettings, StopReason,
+    };
+    use std::sync::atomic::{AtomicBool, Ordering};
+    use std::sync::Arc;
+    let scene = load(
+        "scenes/caustic-glass.xml",
+        &[("res", "24"), ("integrator", "sppm")],
+    );
+    let pass = pass_spp(24, 24) as u64;
+    let spp = 3 * pass as u32;
+    let dir = std::env::temp_dir().join(format!("penumbra-sppm-resume-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let path = dir.join("sppm.ckpt");
+    let stop = Arc::new(AtomicBool::new(false));
+    let settings = ProgressiveSettings {
+        spp,
+        seed: 11,
+        threads: None,
+        time_limit: None,
+        target_rel_error: None,
+        checkpoint: Some(Checkpointing {
+            path: path.clone(),
+            every: std::time::Duration::from_secs(3600),
+        }),
+        scene_hash: 42,
+        stop: Some(stop.clone()),
+    };
+    // Stop after the first pass: the final checkpoint holds `pass` iterations.
+    let (p, reason) = render_progressive(&scene, &settings, None, &|_| {
+        stop.store(true, Ordering::Relaxed)
+    })
+    .unwrap();
+    assert_eq!((reason, p.samples), (StopReason::Interrupted, pass));
+    let checkpoint = Checkpoint::read(&path).expect("checkpoint");
+    assert_eq!(checkpoint.sppm.as_ref().map(|s| s.iterations), Some(pass));
+    stop.store(false, Ordering::Relaxed);
+    let (resumed, reason) =
+        render_progressive(&scene, &settings, Some(checkpoint), &|_| {}).unwrap();
+    assert_eq!(
+        (reason, resumed.samples),
+        (StopReason::SppReached, spp as u64)
+    );
+    // Straight through, in passes and in one render.
+    let straight = ProgressiveSettings {
+        checkpoint: None,
+        stop: None,
+        ..settings.clone()
+    };
+    let (whole, _) = render_progressive(&scene, &straight, None, &|_| {}).unwrap();
+    let one = render_scene(&scene, spp, 11, None);
+    assert!(
+        resumed.film.sum == whole.film.sum,
+        "resumed != straight through in passes"
+    );
+    assert!(resumed.film.sum == one.film.sum, "resumed != one render");
+    assert!(
+        resumed.sppm == whole.sppm,
+        "resumed state != straight-through state"
+    );
+    assert_eq!(resumed.film.spp(), spp as f64);
+
+    // The other integrator's checkpoints, a target error, parts.
+    let mut path_scene = load(
+        "scenes/caustic-glass.xml",
+        &[("res", "24"), ("integrator", "sppm")],
+    );
+    path_scene.use_integrator("path").expect("path");
+    let e = render_progressive(
+        &path_scene,
+        &settings,
+        Checkpoint::read(&path).ok(),
+        &|_| {},
+    )
+    .expect_err("a path render resumed an sppm checkpoint")
+    .to_string();
+    assert!(e.contains("sppm") && !e.contains('\n'), "{e}");
+    let path_settings = ProgressiveSettings {
+        spp: pass as u32,
+        stop: None,
+        ..settings.clone()
+    };
+    render_progressive(&path_scene, &path_settings, None, &|_| {}).unwrap();
+    let e = render_progressive(&scene, &settings, Checkpoint::read(&path).ok(), &|_| {})
+        .expect_err("an sppm render resumed a path checkpoint")
+        .to_string();
+    assert!(e.contains("not sppm") && !e.contains('\n'), "{e}");
+    let e = render_progressive(
+        &scene,
+        &ProgressiveSettings {
+            target_rel_error: Some((0.01, ErrorTarget::ImageMean)),
+            ..straight.clone()
+        },
+        None,
+        &|_| {},
+    )
+    .expect_err("a target error was accepted")
+    .to_string();
+    assert!(e.contains("sppm") && !e.contains('\n'), "{e}");
+    let plan = PartPlan {
+        index: 0,
+        count: 2,
+        plan_spp: spp as u64,
+        start_spp: 0,
+    };
+    let e = render_part(&scene, &plan, 11, None, 42)
+        .expect_err("an sppm part was accepted")
+        .to_string();
+    assert!(e.contains("sppm") && !e.contains('\n'), "{e}");
+    std::fs::remove_dir_all(&dir).ok();
+}

@@ -328,8 +328,9 @@ impl Sppm {
         }
     }
 
-    /// Renders `settings.spp` iterations from scratch (an SPPM render cannot continue
-    /// another: its radii and photon statistics are not in the film).
+    /// Renders `settings.spp` iterations from scratch (a render continued from a state
+    /// goes through [`Sppm::iterate`]: `settings.first_sample` must be 0 here, since the
+    /// film alone cannot continue an SPPM render).
     pub fn render(
         &self,
         scene: &Scene,
@@ -339,28 +340,57 @@ impl Sppm {
     ) -> crate::error::Result<RenderOutput> {
         if settings.first_sample != 0 {
             return Err(crate::error::Error::Invalid(
-                "an sppm render cannot continue another one (its per-pixel radii and photon \
-                 counts are not saved): render all iterations in one run"
+                "an sppm render cannot continue from a film (its per-pixel radii and photon \
+                 counts are not in it): resume it from a checkpoint"
                     .into(),
             ));
         }
+        let mut state = SppmState::new(scene, self);
+        let stats = self.iterate(
+            scene,
+            settings,
+            pool,
+            &mut state,
+            settings.spp as u64,
+            progress,
+        );
+        Ok(RenderOutput {
+            film: state.film(scene),
+            stats,
+        })
+    }
+
+    /// Runs `count` more iterations on `state` (numbered on from `state.iterations`, so that
+    /// a render continued from a saved state is bit-identical to one run straight through),
+    /// with `settings`' seed, sampler and threads; returns their statistics.
+    pub fn iterate(
+        &self,
+        scene: &Scene,
+        settings: &RenderSettings,
+        pool: &rayon::ThreadPool,
+        state: &mut SppmState,
+        count: u64,
+        progress: &(dyn Fn(u64, u64) + Sync),
+    ) -> RenderStats {
         let (w, h) = (scene.width, scene.height);
         let n = w * h;
         let start = Instant::now();
         let mut stats = RenderStats {
-            paths: n as u64 * settings.spp as u64,
+            paths: n as u64 * count,
             ..Default::default()
         };
-        let mut film = Film::new(w, h, scene.filter);
         let lights = Distribution1D::new(scene.emitters.iter().map(|e| {
             e.power(&scene.shapes, scene.bounding_sphere.1 as f64)
                 .max(0.0)
         }));
-        // Per pixel: the accumulated direct part, photons N, flux τ, radius.
-        let mut ld = vec![Spectrum::ZERO.as_dvec3(); n];
-        let mut big_n = vec![0.0f64; n];
-        let mut tau = vec![glam::DVec3::ZERO; n];
-        let mut radius = vec![self.initial_radius as f64; n];
+        let SppmState {
+            iterations,
+            photons_emitted,
+            ld,
+            big_n,
+            tau,
+            radius,
+        } = state;
         // The pixel's angular size, for the automatic initial radius.
         let pixel_angle = {
             let a = scene.camera.generate_ray(Vec2::splat(0.5)).d.normalize();
@@ -373,9 +403,9 @@ impl Sppm {
         };
         let sampler = settings.sampler.unwrap_or(scene.sampler);
         let size = (w as u32, h as u32);
-        let mut photons_emitted = 0u64;
-        let total = n as u64 * settings.spp as u64;
-        for iteration in 0..settings.spp as u64 {
+        let total = n as u64 * count;
+        let first = *iterations;
+        for iteration in first..first + count {
             // 1. Camera pass, by rows.
             let rows: Vec<(Vec<CameraSample>, PathStats)> = pool.install(|| {
                 (0..h)
@@ -419,7 +449,7 @@ impl Sppm {
             // 2. Photon pass.
             let mut phi = vec![glam::DVec3::ZERO; n];
             let mut m = vec![0u64; n];
-            if let (Some(lights), Some(grid)) = (&lights, Grid::new(&vps, &radius)) {
+            if let (Some(lights), Some(grid)) = (&lights, Grid::new(&vps, radius)) {
                 let chunks = self.photon_count.div_ceil(PHOTON_CHUNK);
                 let results: Vec<(Vec<Deposit>, PathStats)> = pool.install(|| {
                     (0..chunks)
@@ -435,7 +465,7 @@ impl Sppm {
                                     scene,
                                     lights,
                                     &vps,
-                                    &radius,
+                                    radius,
                                     &grid,
                                     &mut s,
                                     &mut st,
@@ -453,7 +483,7 @@ impl Sppm {
                         m[k as usize] += 1;
                     }
                 }
-                photons_emitted += self.photon_count;
+                *photons_emitted += self.photon_count;
             }
             // 3. Update.
             for i in 0..n {
@@ -470,15 +500,57 @@ impl Sppm {
                     self.alpha as f64,
                 );
             }
-            progress((iteration + 1) * n as u64, total);
+            progress((iteration + 1 - first) * n as u64, total);
         }
-        // The image, as a film of k samples per pixel of value L each.
-        let k = settings.spp as f64;
-        for i in 0..n {
-            let mut l = ld[i] / k.max(1.0);
-            if photons_emitted > 0 && radius[i] > 0.0 {
-                l += tau[i]
-                    / (photons_emitted as f64 * std::f64::consts::PI * radius[i] * radius[i]);
+        *iterations += count;
+        stats.seconds = start.elapsed().as_secs_f64();
+        stats
+    }
+}
+
+/// An SPPM render's running state: per pixel the summed direct part L_d, the photon count N,
+/// the flux τ and the radius, with the iterations run and the photons emitted. Enough to
+/// continue the render (checkpoints save it) and to make its image ([`SppmState::film`]).
+#[derive(Clone, Debug, PartialEq)]
+pub struct SppmState {
+    pub iterations: u64,
+    pub photons_emitted: u64,
+    pub ld: Vec<glam::DVec3>,
+    pub big_n: Vec<f64>,
+    pub tau: Vec<glam::DVec3>,
+    /// 0 until the pixel's first visible point when the radius is automatic.
+    pub radius: Vec<f64>,
+}
+
+impl SppmState {
+    /// The state before the first iteration.
+    pub fn new(scene: &Scene, sppm: &Sppm) -> Self {
+        let n = scene.width * scene.height;
+        SppmState {
+            iterations: 0,
+            photons_emitted: 0,
+            ld: vec![glam::DVec3::ZERO; n],
+            big_n: vec![0.0; n],
+            tau: vec![glam::DVec3::ZERO; n],
+            radius: vec![sppm.initial_radius as f64; n],
+        }
+    }
+
+    /// The image so far, as a film of k samples per pixel of value L each (k the
+    /// iterations): L = L_d / k + τ / (N_e π r²). Its variance channels are zero (a pixel
+    /// is not a mean of independent samples).
+    pub fn film(&self, scene: &Scene) -> Film {
+        let n = scene.width * scene.height;
+        let mut film = Film::new(scene.width, scene.height, scene.filter);
+        let k = self.iterations as f64;
+        for i in 0..n.min(self.ld.len()) {
+            let mut l = self.ld[i] / k.max(1.0);
+            if self.photons_emitted > 0 && self.radius[i] > 0.0 {
+                l += self.tau[i]
+                    / (self.photons_emitted as f64
+                        * std::f64::consts::PI
+                        * self.radius[i]
+                        * self.radius[i]);
             }
             for (c, l) in [l.x, l.y, l.z].into_iter().enumerate() {
                 film.sum[i][c] = l * k;
@@ -490,9 +562,8 @@ impl Sppm {
             film.weight_sq[i] = k;
             film.weight_cube[i] = k;
         }
-        film.samples = n as u64 * settings.spp as u64;
-        stats.seconds = start.elapsed().as_secs_f64();
-        Ok(RenderOutput { film, stats })
+        film.samples = n as u64 * self.iterations;
+        film
     }
 }
 
