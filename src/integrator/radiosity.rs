@@ -460,6 +460,8 @@ impl Solution {
                     let z = if side == 0 { Vec3::Z } else { -Vec3::Z };
                     for _ in 0..n_rays {
                         let u = Vec2::new(rng.random(), rng.random());
+                        // The direction's numbers, drawn to stay in step with the
+                        // form-factor pass below (same points).
                         let _ = (rng.random::<f32>(), rng.random::<f32>());
                         let si = layout.sample(scene, c, u);
                         let bsdf = scene.shading_bsdf(&si);
@@ -710,5 +712,31 @@ impl RadiosityIntegrator {
                 l
             }
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Every (cell, side) draws its own stream: the estimates of different patches are
+    /// independent, as the reciprocity test's variance (tests/radiosity.rs) assumes.
+    #[test]
+    fn each_patch_side_has_its_own_random_stream() {
+        let mut firsts: Vec<[u32; 4]> = Vec::new();
+        for cell in 0..256 {
+            for side in 0..2u8 {
+                let mut r = rng(7, cell, side);
+                firsts.push(std::array::from_fn(|_| r.random::<u32>()));
+            }
+        }
+        let n = firsts.len();
+        firsts.sort_unstable();
+        firsts.dedup();
+        assert_eq!(
+            firsts.len(),
+            n,
+            "two patch sides share their random numbers"
+        );
     }
 }
