@@ -307,6 +307,8 @@ fn closed_furnace_has_the_analytic_radiosity() {
     }
     // The flat image: each pixel is its patch's B/π, within the same bound.
     let out = render_scene(&scene, 4, 5, None);
+    // One ray per sample: the camera's.
+    assert_eq!(out.stats.path.rays, 32 * 32 * 4);
     for (k, px) in out.film.image().iter().enumerate() {
         for c in 0..3 {
             assert!(
@@ -321,6 +323,11 @@ fn closed_furnace_has_the_analytic_radiosity() {
     let scene = scene_from_str(&xml("gather"));
     let spp = 64;
     let out = render_scene(&scene, spp, 5, None);
+    // Per sample the camera ray, the gather ray (a diffuse BSDF sample always succeeds
+    // inside the cube) and a shadow ray unless the emitter sample lies in the hit's plane.
+    let n = 32 * 32 * spp as u64;
+    let rays = out.stats.path.rays;
+    assert!(rays > 2 * n && rays <= 3 * n, "{rays} rays for {n} samples");
     let (mean, se) = image_mean_and_se(&out, spp);
     let z_max = normal_critical_z(sidak(ALPHA, 3));
     for c in 0..3 {
@@ -403,6 +410,31 @@ fn deterministic_at_any_thread_count() {
     );
     let two = render_scene(&scene, 4, 9, Some(2)).film.image();
     assert_eq!(one, two);
+}
+
+/// The solution is kept for further renders with the same seed (the very same one, not
+/// solved again) and solved anew for another seed.
+#[test]
+fn the_solution_is_kept_per_seed() {
+    let scene = load(
+        "scenes/ladder/5-radiosity.xml",
+        &[
+            ("res", "8"),
+            ("patch_count", "64"),
+            ("rays_per_patch", "64"),
+        ],
+    );
+    let r = radiosity(&scene);
+    assert!(r.current().is_none());
+    let a = r.prepare(&scene, 1);
+    assert!(std::sync::Arc::ptr_eq(&a, &r.prepare(&scene, 1)));
+    assert!(std::sync::Arc::ptr_eq(&a, &r.current().expect("kept")));
+    let b = r.prepare(&scene, 2);
+    assert!(!std::sync::Arc::ptr_eq(&a, &b));
+    assert_ne!(
+        a.radiosity, b.radiosity,
+        "another seed, other form-factor rays"
+    );
 }
 
 /// What radiosity cannot represent is refused with one line naming it.
