@@ -137,6 +137,19 @@ fn without_shadows_an_occluder_casts_no_shadow() {
     );
 }
 
+/// The counters a render reports (rays, bounces): a camera ray that hits the plane at
+/// max_depth 2 is one bounce and two rays (its own and the shadow ray to the point light).
+#[test]
+fn rays_and_bounces_are_counted() {
+    let scene = plane_scene(2, "");
+    let ray = scene.camera.generate_ray(Vec2::splat(0.5));
+    let mut stats = PathStats::default();
+    let mut sampler = SampleStream::new(0, 7, 0);
+    let l = scene.integrator.li(&scene, ray, &mut sampler, &mut stats);
+    assert!(l.max_element() > 0.0);
+    assert_eq!((stats.rays, stats.bounces), (2, 1));
+}
+
 #[test]
 fn no_randomness_given_the_camera_ray() {
     // Point and spot lights, a mirror, glass and a thin panel: every branch is followed, so
