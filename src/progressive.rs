@@ -172,21 +172,9 @@ pub fn render_progressive(
     let mut progress = match resume {
         Some(c) => {
             c.check_matches(scene, settings, pass)?;
-            match (sppm, c.sppm) {
-                (Some(_), Some(state)) => Progress {
-                    film: state.film(scene),
-                    exact: c.exact,
-                    samples: c.samples,
-                    stats: c.stats,
-                    sppm: Some(state),
-                },
-                (None, None) => Progress {
-                    film: c.exact.to_film(scene.filter),
-                    exact: c.exact,
-                    samples: c.samples,
-                    stats: c.stats,
-                    sppm: None,
-                },
+            let film = match (sppm, &c.sppm) {
+                (Some(_), Some(state)) => state.film(scene),
+                (None, None) => c.exact.to_film(scene.filter),
                 (Some(_), None) => {
                     return Err(Error::Invalid(
                         "cannot resume: the checkpoint holds a render of another integrator, \
@@ -199,6 +187,13 @@ pub fn render_progressive(
                         "cannot resume: the checkpoint holds an sppm render".into(),
                     ))
                 }
+            };
+            Progress {
+                film,
+                exact: c.exact,
+                samples: c.samples,
+                stats: c.stats,
+                sppm: c.sppm,
             }
         }
         None => Progress {
@@ -208,6 +203,11 @@ pub fn render_progressive(
             stats: RenderStats::default(),
             sppm: sppm.map(|s| crate::integrator::sppm::SppmState::new(scene, s)),
         },
+    };
+    // SPPM's passes run on one pool (a path render's passes make theirs in `render`).
+    let sppm_pool = match sppm {
+        Some(_) => Some(crate::render::thread_pool(settings.threads)?),
+        None => None,
     };
     let start = Instant::now();
     let mut last_checkpoint = Instant::now();
@@ -242,11 +242,10 @@ pub fn render_progressive(
             sampler: None,
             first_sample: progress.samples,
         };
-        let stats = match (sppm, progress.sppm.as_mut()) {
-            (Some(integrator), Some(state)) => {
-                let pool = crate::render::thread_pool(settings.threads)?;
+        let stats = match (sppm, progress.sppm.as_mut(), &sppm_pool) {
+            (Some(integrator), Some(state), Some(pool)) => {
                 let stats =
-                    integrator.iterate(scene, &pass_settings, &pool, state, spp as u64, &|_, _| {});
+                    integrator.iterate(scene, &pass_settings, pool, state, spp as u64, &|_, _| {});
                 progress.film = state.film(scene);
                 stats
             }

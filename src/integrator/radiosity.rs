@@ -632,13 +632,6 @@ impl RadiosityIntegrator {
         }
     }
 
-    /// The solution [`RadiosityIntegrator::li`] uses: the one given to
-    /// [`RadiosityIntegrator::with_solution`], else the one kept from the last
-    /// [`RadiosityIntegrator::prepare`].
-    pub fn solution(&self) -> Option<Arc<Solution>> {
-        self.fixed.clone().or_else(|| self.current())
-    }
-
     /// The solution kept from the last [`RadiosityIntegrator::prepare`].
     pub fn current(&self) -> Option<Arc<Solution>> {
         self.solution
@@ -647,8 +640,9 @@ impl RadiosityIntegrator {
             .clone()
     }
 
-    /// The radiance along a camera ray with the solution of [`RadiosityIntegrator::solution`]
-    /// (0 before any).
+    /// The radiance along a camera ray with the solution given to
+    /// [`RadiosityIntegrator::with_solution`], else the one kept from the last
+    /// [`RadiosityIntegrator::prepare`] (0 before any).
     #[inline]
     pub fn li_with_solution(
         &self,
