@@ -75,13 +75,6 @@ struct VisiblePoint {
     dist: f32,
 }
 
-/// What the camera pass finds for one pixel.
-struct CameraSample {
-    /// Emission seen and direct lighting at the visible point, times the throughput.
-    ld: Spectrum,
-    vp: Option<VisiblePoint>,
-}
-
 /// One photon's deposit: pixel, β f.
 type Deposit = (u32, Spectrum);
 
@@ -92,11 +85,18 @@ const PHOTON_CHUNK: u64 = 2048;
 const PHOTON_STREAM: u64 = 0x9e07_0a55;
 
 /// A spatial hash grid over the visible points: every point is listed in each cell its
-/// gather sphere overlaps.
+/// gather sphere overlaps. The buckets are one flat array sorted by bucket (a counting sort,
+/// points in index order within a bucket), rebuilt in place each iteration.
+#[derive(Default)]
 struct Grid {
     origin: Vec3,
     inv_cell: f32,
-    buckets: Vec<Vec<u32>>,
+    /// Bucket b lists `entries[start[b]..start[b + 1]]`.
+    start: Vec<u32>,
+    entries: Vec<u32>,
+    /// The last point counted in each bucket, so that a point whose cells collide in a
+    /// bucket is listed there once.
+    last: Vec<u32>,
 }
 
 impl Grid {
@@ -112,7 +112,33 @@ impl Grid {
         [c.x as i32, c.y as i32, c.z as i32]
     }
 
-    fn new(vps: &[Option<VisiblePoint>], radius: &[f64]) -> Option<Grid> {
+    /// Calls `f(point, bucket)` for every bucket of every point's cells, in point order.
+    fn for_each_cell(
+        &self,
+        vps: &[Option<VisiblePoint>],
+        radius: &[f64],
+        n: usize,
+        mut f: impl FnMut(u32, usize),
+    ) {
+        for (i, (vp, &r)) in vps.iter().zip(radius).enumerate() {
+            let Some(vp) = vp else { continue };
+            let (a, b) = (
+                self.cell(vp.p - Vec3::splat(r as f32)),
+                self.cell(vp.p + Vec3::splat(r as f32)),
+            );
+            for z in a[2]..=b[2] {
+                for y in a[1]..=b[1] {
+                    for x in a[0]..=b[0] {
+                        f(i as u32, Self::hash([x, y, z], n));
+                    }
+                }
+            }
+        }
+    }
+
+    /// Rebuilds the grid over this iteration's visible points; false when there are none
+    /// (or no positive radius).
+    fn rebuild(&mut self, vps: &[Option<VisiblePoint>], radius: &[f64]) -> bool {
         let mut lo = Vec3::splat(f32::INFINITY);
         let mut max_r = 0.0f32;
         let mut count = 0;
@@ -124,37 +150,48 @@ impl Grid {
             }
         }
         if count == 0 || max_r <= 0.0 || !lo.is_finite() {
-            return None;
+            return false;
         }
-        let mut g = Grid {
-            origin: lo,
-            inv_cell: 1.0 / max_r,
-            buckets: vec![Vec::new(); count * 2],
-        };
-        let n = g.buckets.len();
-        for (i, (vp, &r)) in vps.iter().zip(radius).enumerate() {
-            let Some(vp) = vp else { continue };
-            let (a, b) = (
-                g.cell(vp.p - Vec3::splat(r as f32)),
-                g.cell(vp.p + Vec3::splat(r as f32)),
-            );
-            for z in a[2]..=b[2] {
-                for y in a[1]..=b[1] {
-                    for x in a[0]..=b[0] {
-                        let bucket = &mut g.buckets[Self::hash([x, y, z], n)];
-                        // Cells of one point that collide in a bucket list it once.
-                        if bucket.last() != Some(&(i as u32)) {
-                            bucket.push(i as u32);
-                        }
-                    }
-                }
+        self.origin = lo;
+        self.inv_cell = 1.0 / max_r;
+        let n = count * 2;
+        // Count, then place: bucket sizes, their prefix sums, then the entries.
+        self.start.clear();
+        self.start.resize(n + 1, 0);
+        self.last.clear();
+        self.last.resize(n, u32::MAX);
+        let (mut start, mut last) = (
+            std::mem::take(&mut self.start),
+            std::mem::take(&mut self.last),
+        );
+        self.for_each_cell(vps, radius, n, |i, b| {
+            if last[b] != i {
+                last[b] = i;
+                start[b + 1] += 1;
             }
+        });
+        for b in 0..n {
+            start[b + 1] += start[b];
         }
-        Some(g)
+        self.entries.clear();
+        self.entries.resize(start[n] as usize, 0);
+        last.fill(u32::MAX);
+        let mut next = start.clone();
+        let mut entries = std::mem::take(&mut self.entries);
+        self.for_each_cell(vps, radius, n, |i, b| {
+            if last[b] != i {
+                last[b] = i;
+                entries[next[b] as usize] = i;
+                next[b] += 1;
+            }
+        });
+        (self.start, self.last, self.entries) = (start, last, entries);
+        true
     }
 
     fn candidates(&self, p: Vec3) -> &[u32] {
-        &self.buckets[Self::hash(self.cell(p), self.buckets.len())]
+        let b = Self::hash(self.cell(p), self.start.len() - 1);
+        &self.entries[self.start[b] as usize..self.start[b + 1] as usize]
     }
 }
 
@@ -180,18 +217,18 @@ fn luminance(s: Spectrum) -> f32 {
 }
 
 impl Sppm {
-    /// Step 1 for one pixel.
+    /// Step 1 for one pixel: the emission seen and the direct lighting at the visible
+    /// point, times the throughput; the visible point goes to `vp` (None without one).
     fn camera_path(
         &self,
         scene: &Scene,
         pos: Vec2,
         sampler: &mut SampleStream,
         stats: &mut PathStats,
-    ) -> CameraSample {
-        let mut out = CameraSample {
-            ld: Spectrum::ZERO,
-            vp: None,
-        };
+        vp: &mut Option<VisiblePoint>,
+    ) -> Spectrum {
+        let mut ld = Spectrum::ZERO;
+        *vp = None;
         let res = Vec2::new(scene.width as f32, scene.height as f32);
         let mut ray = if scene.camera.needs_aperture_sample() {
             let u = sampler.next_2d();
@@ -208,7 +245,7 @@ impl Sppm {
             let hit = scene.intersect(&ray);
             // Emission is seen directly or through delta bounces only (what follows the
             // visible point is the photons' and the direct-light sample's).
-            out.ld += beta * emission_at(scene, hit.as_ref(), ray.d);
+            ld += beta * emission_at(scene, hit.as_ref(), ray.d);
             let Some(si) = hit else { break };
             stats.bounces += 1;
             dist += si.t * ray.d.length();
@@ -218,10 +255,10 @@ impl Sppm {
             if bsdf.has_smooth_lobe(wo) {
                 if depth < self.max_depth {
                     if let Some(e) = sample_emitter(scene, &si, &bsdf, wo, u_light, stats) {
-                        out.ld += beta * e.value;
+                        ld += beta * e.value;
                     }
                 }
-                out.vp = Some(VisiblePoint {
+                *vp = Some(VisiblePoint {
                     p: si.p,
                     frame: si.frame,
                     wo,
@@ -243,7 +280,7 @@ impl Sppm {
             ray = Scene::spawn_ray(&si, si.frame.to_world(bs.wo));
             depth += 1;
         }
-        out
+        ld
     }
 
     /// Step 2 for one photon: its deposits.
@@ -405,51 +442,54 @@ impl Sppm {
         let size = (w as u32, h as u32);
         let total = n as u64 * count;
         let first = *iterations;
+        // Buffers reused by every iteration (a visible point holds a whole BSDF: moving
+        // them around each iteration cost more than tracing them).
+        let mut vps: Vec<Option<VisiblePoint>> = vec![None; n];
+        let mut lds = vec![Spectrum::ZERO; n];
+        let mut row_stats = vec![PathStats::default(); h];
+        let mut grid = Grid::default();
+        let mut phi = vec![glam::DVec3::ZERO; n];
+        let mut m = vec![0u64; n];
         for iteration in first..first + count {
             // 1. Camera pass, by rows.
-            let rows: Vec<(Vec<CameraSample>, PathStats)> = pool.install(|| {
-                (0..h)
-                    .into_par_iter()
-                    .map(|y| {
-                        let mut st = PathStats::default();
-                        let row = (0..w)
-                            .map(|x| {
-                                let mut s = sampler.stream(
-                                    settings.seed,
-                                    (x as u32, y as u32),
-                                    size,
-                                    iteration,
-                                );
-                                let pos = Vec2::new(x as f32, y as f32) + s.next_2d();
-                                self.camera_path(scene, pos, &mut s, &mut st)
-                            })
-                            .collect();
-                        (row, st)
-                    })
-                    .collect()
-            });
-            let mut vps: Vec<Option<VisiblePoint>> = Vec::with_capacity(n);
-            for (row, st) in rows {
-                stats.path += st;
-                for cs in row {
-                    let i = vps.len();
-                    if cs.ld.is_finite() {
-                        ld[i] += cs.ld.as_dvec3();
-                    } else {
-                        stats.nonfinite += 1;
-                    }
-                    if let Some(vp) = &cs.vp {
-                        if radius[i] <= 0.0 {
-                            radius[i] = (2.0 * vp.dist as f64 * pixel_angle).max(1e-6);
+            pool.install(|| {
+                vps.par_chunks_mut(w)
+                    .zip(lds.par_chunks_mut(w))
+                    .zip(row_stats.par_iter_mut())
+                    .enumerate()
+                    .for_each(|(y, ((vp_row, ld_row), st))| {
+                        *st = PathStats::default();
+                        for (x, (vp, l)) in vp_row.iter_mut().zip(ld_row).enumerate() {
+                            let mut s = sampler.stream(
+                                settings.seed,
+                                (x as u32, y as u32),
+                                size,
+                                iteration,
+                            );
+                            let pos = Vec2::new(x as f32, y as f32) + s.next_2d();
+                            *l = self.camera_path(scene, pos, &mut s, st, vp);
                         }
+                    })
+            });
+            for st in &row_stats {
+                stats.path += *st;
+            }
+            for i in 0..n {
+                if lds[i].is_finite() {
+                    ld[i] += lds[i].as_dvec3();
+                } else {
+                    stats.nonfinite += 1;
+                }
+                if let Some(vp) = &vps[i] {
+                    if radius[i] <= 0.0 {
+                        radius[i] = (2.0 * vp.dist as f64 * pixel_angle).max(1e-6);
                     }
-                    vps.push(cs.vp);
                 }
             }
             // 2. Photon pass.
-            let mut phi = vec![glam::DVec3::ZERO; n];
-            let mut m = vec![0u64; n];
-            if let (Some(lights), Some(grid)) = (&lights, Grid::new(&vps, radius)) {
+            phi.fill(glam::DVec3::ZERO);
+            m.fill(0);
+            if let Some(lights) = lights.as_ref().filter(|_| grid.rebuild(&vps, radius)) {
                 let chunks = self.photon_count.div_ceil(PHOTON_CHUNK);
                 let results: Vec<(Vec<Deposit>, PathStats)> = pool.install(|| {
                     (0..chunks)
