@@ -22,8 +22,12 @@
 //! all. `max_depth` counts path segments as for `path`: a photon deposit at its j-th
 //! surface hit completes a path of d + j segments, d the camera segments to the visible
 //! point, and counts only within `max_depth`. `initial_radius` 0 (the default) starts each
-//! pixel at twice its footprint at the visible point (the distance along the camera path
-//! times the pixel's angular size), so the radius adapts to the scene's scale.
+//! pixel at one footprint at the visible point (the distance along the camera path times
+//! the pixel's angular size), so the radius adapts to the scene's scale. One footprint, not
+//! more: the early iterations' blur decays slowly (r² falls as k^(−(1−α)/α) = k^(−1/2)
+//! where photons arrive every iteration), and on `scenes/caustic-glass.xml` two footprints
+//! left about 8× the squared error in the caustic after 4096 iterations; the noise they
+//! save elsewhere did not make up for it in a minute's render (docs/light-paths.md).
 //!
 //! The estimate is biased (the radius blurs the illumination) and consistent: the bias
 //! vanishes as the radius shrinks with α < 1. Known limitation, as in pbrt-v4: at a
@@ -53,7 +57,7 @@ pub struct Sppm {
     pub max_depth: u32,
     /// Photons emitted per iteration.
     pub photon_count: u64,
-    /// Radius of every pixel's first gather (scene units); 0: twice the pixel's footprint.
+    /// Radius of every pixel's first gather (scene units); 0: the pixel's footprint.
     pub initial_radius: f32,
     /// Radius reduction: the share of new photons kept per iteration, in (0, 1).
     pub alpha: f32,
@@ -80,6 +84,10 @@ type Deposit = (u32, Spectrum);
 
 /// Photons per work chunk (the unit of parallelism and of the fixed summation order).
 const PHOTON_CHUNK: u64 = 2048;
+
+/// The automatic initial radius, in pixel footprints at the visible point (see the module
+/// documentation for why one).
+const FOOTPRINTS: f64 = 1.0;
 
 /// Key of the photons' sample streams, apart from the camera's.
 const PHOTON_STREAM: u64 = 0x9e07_0a55;
@@ -482,7 +490,7 @@ impl Sppm {
                 }
                 if let Some(vp) = &vps[i] {
                     if radius[i] <= 0.0 {
-                        radius[i] = (2.0 * vp.dist as f64 * pixel_angle).max(1e-6);
+                        radius[i] = (FOOTPRINTS * vp.dist as f64 * pixel_angle).max(1e-6);
                     }
                 }
             }
