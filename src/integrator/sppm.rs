@@ -620,6 +620,53 @@ mod tests {
     use super::*;
     use glam::DVec3;
 
+    /// The hash grid lists, for any point, every visible point whose gather sphere holds it
+    /// (checked against brute force), each once and in index order; rebuilt in place over a
+    /// second set of points, it forgets the first.
+    #[test]
+    fn grid_candidates_hold_every_point_in_reach_once() {
+        use rand::{RngExt, SeedableRng};
+        let mut rng = rand_pcg::Pcg64::seed_from_u64(7);
+        let mut grid = Grid::default();
+        for (count, r_max) in [(400usize, 0.15f64), (300, 0.1)] {
+            let vps: Vec<Option<VisiblePoint>> = (0..count)
+                .map(|_| {
+                    (rng.random::<f32>() < 0.9).then(|| VisiblePoint {
+                        p: Vec3::new(rng.random(), rng.random(), rng.random()) * 2.0 - 1.0,
+                        frame: Frame::from_normal(Vec3::Z),
+                        wo: Vec3::Z,
+                        bsdf: ShadingBsdf::new(),
+                        beta: Spectrum::ONE,
+                        depth: 1,
+                        dist: 1.0,
+                    })
+                })
+                .collect();
+            let radius: Vec<f64> = (0..count)
+                .map(|_| r_max * (0.1 + 0.9 * rng.random::<f64>()))
+                .collect();
+            assert!(grid.rebuild(&vps, &radius));
+            let mut found = 0;
+            for _ in 0..20_000 {
+                let q = Vec3::new(rng.random(), rng.random(), rng.random()) * 2.4 - 1.2;
+                let c = grid.candidates(q);
+                assert!(c.windows(2).all(|w| w[0] < w[1]), "{c:?}");
+                for (i, (vp, &r)) in vps.iter().zip(&radius).enumerate() {
+                    let Some(vp) = vp else {
+                        assert!(!c.contains(&(i as u32)));
+                        continue;
+                    };
+                    if vp.p.distance(q) <= r as f32 {
+                        found += 1;
+                        assert!(c.contains(&(i as u32)), "point {i} missing at {q}");
+                    }
+                }
+            }
+            assert!(found > 100, "{found} points in reach: too few to test");
+        }
+        assert!(!grid.rebuild(&[None, None], &[0.1, 0.1]));
+    }
+
     /// The update's arithmetic on hand-computed cases: the first iteration (N = 0) keeps α M
     /// photons and shrinks the area by α; a pixel that keeps finding the same photon
     /// density keeps the same density estimate τ / (N_e π r²) up to the N_e growth.
