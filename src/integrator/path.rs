@@ -10,6 +10,7 @@
 use crate::bsdf::Spectrum;
 use crate::geometry::Ray;
 use crate::integrator::{sample_emitter, PathStats};
+use crate::material::ShadingBsdf;
 use crate::sampler::SampleStream;
 use crate::sampling::mis_power;
 use crate::scene::Scene;
@@ -44,6 +45,8 @@ impl PathIntegrator {
         let mut prev_p = ray.o;
         let mut prev_bsdf_pdf = 1.0f32;
         let mut prev_delta = true;
+        // Filled in place at each vertex (see `Scene::shading_bsdf_into`).
+        let mut bsdf = ShadingBsdf::new();
         loop {
             stats.rays += 1;
             let Some(si) = scene.intersect(&ray) else {
@@ -88,7 +91,7 @@ impl PathIntegrator {
                 break;
             }
             stats.bounces += 1;
-            let bsdf = scene.shading_bsdf(&si);
+            scene.shading_bsdf_into(&si, &mut bsdf);
             let wi = si.frame.to_local(wi_world);
 
             // Next-event estimation.

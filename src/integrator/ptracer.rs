@@ -224,13 +224,16 @@ impl ParticleTracer {
         let mut throughput = er.weight * count;
         let mut eta = 1.0f32;
         let mut depth = 1u32;
+        // Filled in place at each vertex (see `Scene::shading_bsdf_into`).
+        let mut bsdf = crate::material::ShadingBsdf::new();
         while depth < self.max_depth {
             stats.rays += 1;
             let Some(si) = scene.intersect(&ray) else {
                 break;
             };
             stats.bounces += 1;
-            let bsdf = scene.shading_bsdf(&si).importance();
+            scene.shading_bsdf_into(&si, &mut bsdf);
+            bsdf.set_importance();
             // Towards where the light came from.
             let wi_world = -ray.d.normalize();
             let wi = si.frame.to_local(wi_world);

@@ -316,6 +316,8 @@ impl Sppm {
         let mut ray = er.ray;
         // Surface hits so far, counting the one being looked for.
         let mut hits = 1u32;
+        // Filled in place at each vertex (see `Scene::shading_bsdf_into`).
+        let mut bsdf = ShadingBsdf::new();
         while hits <= self.max_depth {
             stats.rays += 1;
             let Some(si) = scene.intersect(&ray) else {
@@ -344,7 +346,8 @@ impl Sppm {
             if hits == self.max_depth {
                 break;
             }
-            let bsdf = scene.shading_bsdf(&si).importance();
+            scene.shading_bsdf_into(&si, &mut bsdf);
+            bsdf.set_importance();
             let wi = si.frame.to_local(wi_world);
             let (u1, u2) = (sampler.next_1d(), sampler.next_2d());
             let Some(bs) = bsdf.sample(wi, u1, u2) else {

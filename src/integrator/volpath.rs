@@ -29,6 +29,7 @@ use crate::bsdf::Spectrum;
 use crate::emitter::DirectionSample;
 use crate::geometry::Ray;
 use crate::integrator::{emission_at, emitter_pdf_at, PathStats};
+use crate::material::ShadingBsdf;
 use crate::medium::{exp3, mean3, safe_div3, Medium, MediumInteraction};
 use crate::sampler::SampleStream;
 use crate::sampling::mis_power;
@@ -303,6 +304,8 @@ impl VolPathIntegrator {
         let mut hit: Option<Option<SurfaceInteraction>> = None;
         let mut last_scatter_p = ray.o;
         let mut last_scatter_pdf = 1.0f32;
+        // Filled in place at each surface vertex (see `Scene::shading_bsdf_into`).
+        let mut bsdf = ShadingBsdf::new();
         loop {
             // Russian roulette and the depth limit.
             if throughput == Vec3::ZERO || !throughput.is_finite() {
@@ -418,7 +421,7 @@ impl VolPathIntegrator {
             let Some(si) = si else {
                 break;
             };
-            let bsdf = scene.shading_bsdf(&si);
+            scene.shading_bsdf_into(&si, &mut bsdf);
             let wi = si.frame.to_local(-ray.d);
 
             // Next-event estimation.

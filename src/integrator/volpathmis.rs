@@ -32,6 +32,7 @@ use crate::bsdf::Spectrum;
 use crate::emitter::DirectionSample;
 use crate::geometry::Ray;
 use crate::integrator::{emission_at, emitter_pdf_at, PathStats};
+use crate::material::ShadingBsdf;
 use crate::medium::{mean3, safe_div3, Medium, MediumInteraction};
 use crate::sampler::SampleStream;
 use crate::scene::Scene;
@@ -225,6 +226,8 @@ impl VolPathMisIntegrator {
         let mut hit: Option<Option<SurfaceInteraction>> = None;
         let mut last_scatter_p = ray.o;
         let mut last_event_was_null = false;
+        // Filled in place at each surface vertex (see `Scene::shading_bsdf_into`).
+        let mut bsdf = ShadingBsdf::new();
         loop {
             // Russian roulette (not right after a null collision) and the depth limit.
             if !last_event_was_null && depth > self.rr_depth {
@@ -332,7 +335,7 @@ impl VolPathMisIntegrator {
             let Some(si) = si else {
                 break;
             };
-            let bsdf = scene.shading_bsdf(&si);
+            scene.shading_bsdf_into(&si, &mut bsdf);
             let wi = si.frame.to_local(-ray.d);
 
             // Next-event estimation.

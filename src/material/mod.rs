@@ -139,6 +139,17 @@ impl Material {
         push(materials, root, ctx, &mut out);
         out
     }
+
+    /// [`Material::shading_bsdf`] written into `out` (cleared first), in place.
+    pub fn shading_bsdf_into(
+        materials: &[Material],
+        root: u32,
+        ctx: &ShadingContext,
+        out: &mut ShadingBsdf,
+    ) {
+        out.clear();
+        push(materials, root, ctx, out);
+    }
 }
 
 /// A texture-driven parameter's value: the colour, or one value (`eval_1`) splatted.

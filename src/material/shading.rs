@@ -65,6 +65,14 @@ impl ShadingBsdf {
         }
     }
 
+    /// Empties the BSDF for reuse (radiance transport), keeping its storage in place: a
+    /// `ShadingBsdf` holds its nodes inline (about 2.5 KB), so filling one per hit in place
+    /// ([`crate::scene::Scene::shading_bsdf_into`]) saves copying it out of a function.
+    pub fn clear(&mut self) {
+        self.nodes.clear();
+        self.importance = false;
+    }
+
     /// A shading BSDF of one plain BSDF.
     pub fn leaf(b: Bsdf) -> Self {
         let mut s = Self::new();
@@ -129,6 +137,11 @@ impl ShadingBsdf {
     pub fn importance(mut self) -> Self {
         self.importance = true;
         self
+    }
+
+    /// [`ShadingBsdf::importance`] in place.
+    pub fn set_importance(&mut self) {
+        self.importance = true;
     }
 
     /// Whether the BSDF has a non-delta lobe for `wi` (emitter sampling is useful).

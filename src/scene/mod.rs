@@ -253,6 +253,15 @@ impl Scene {
     /// The BSDF at surface interaction `si`, its textures looked up.
     #[inline]
     pub fn shading_bsdf(&self, si: &SurfaceInteraction) -> ShadingBsdf {
+        let mut out = ShadingBsdf::new();
+        self.shading_bsdf_into(si, &mut out);
+        out
+    }
+
+    /// [`Scene::shading_bsdf`] written into `out` in place (the integrators' hot loops keep
+    /// one per path instead of copying a new one out of each call).
+    #[inline]
+    pub fn shading_bsdf_into(&self, si: &SurfaceInteraction, out: &mut ShadingBsdf) {
         let shape = &self.shapes[si.shape as usize];
         let mesh = match &shape.geometry {
             crate::shape::ShapeGeometry::Mesh(m) => Some(m),
@@ -270,7 +279,7 @@ impl Scene {
             dp_dv: si.dp_dv,
             ng: si.ng,
         };
-        Material::shading_bsdf(&self.materials, shape.material, &ctx)
+        Material::shading_bsdf_into(&self.materials, shape.material, &ctx, out)
     }
 
     /// Probability of choosing emitter `i` for next-event estimation: uniform, as in
