@@ -92,40 +92,32 @@ const FOOTPRINTS: f64 = 1.0;
 /// Key of the photons' sample streams, apart from the camera's.
 const PHOTON_STREAM: u64 = 0x9e07_0a55;
 
-/// A spatial hash grid over the visible points: every point is listed in each cell its
-/// gather sphere overlaps. The buckets are one flat array sorted by bucket (a counting sort,
-/// points in index order within a bucket), rebuilt in place each iteration.
-#[derive(Default)]
-struct Grid {
+/// The grid's cells: cubes of side 1 / `inv_cell` from `origin`, hashed into `buckets`.
+#[derive(Clone, Copy, Default)]
+struct Lattice {
     origin: Vec3,
     inv_cell: f32,
-    /// Bucket b lists `entries[start[b]..start[b + 1]]`.
-    start: Vec<u32>,
-    entries: Vec<u32>,
-    /// The last point counted in each bucket, so that a point whose cells collide in a
-    /// bucket is listed there once.
-    last: Vec<u32>,
+    buckets: usize,
 }
 
-impl Grid {
-    fn hash(c: [i32; 3], n: usize) -> usize {
-        let h = (c[0] as u32 as u64).wrapping_mul(73_856_093)
-            ^ (c[1] as u32 as u64).wrapping_mul(19_349_663)
-            ^ (c[2] as u32 as u64).wrapping_mul(83_492_791);
-        (h % n as u64) as usize
-    }
-
+impl Lattice {
     fn cell(&self, p: Vec3) -> [i32; 3] {
         let c = ((p - self.origin) * self.inv_cell).floor();
         [c.x as i32, c.y as i32, c.z as i32]
     }
 
+    fn bucket(&self, c: [i32; 3]) -> usize {
+        let h = (c[0] as u32 as u64).wrapping_mul(73_856_093)
+            ^ (c[1] as u32 as u64).wrapping_mul(19_349_663)
+            ^ (c[2] as u32 as u64).wrapping_mul(83_492_791);
+        (h % self.buckets as u64) as usize
+    }
+
     /// Calls `f(point, bucket)` for every bucket of every point's cells, in point order.
-    fn for_each_cell(
+    fn for_each_bucket(
         &self,
         vps: &[Option<VisiblePoint>],
         radius: &[f64],
-        n: usize,
         mut f: impl FnMut(u32, usize),
     ) {
         for (i, (vp, &r)) in vps.iter().zip(radius).enumerate() {
@@ -137,13 +129,31 @@ impl Grid {
             for z in a[2]..=b[2] {
                 for y in a[1]..=b[1] {
                     for x in a[0]..=b[0] {
-                        f(i as u32, Self::hash([x, y, z], n));
+                        f(i as u32, self.bucket([x, y, z]));
                     }
                 }
             }
         }
     }
+}
 
+/// A spatial hash grid over the visible points: every point is listed in each cell its
+/// gather sphere overlaps. The buckets are one flat array sorted by bucket (a counting sort,
+/// points in index order within a bucket), rebuilt in place each iteration.
+#[derive(Default)]
+struct Grid {
+    lattice: Lattice,
+    /// Bucket b lists `entries[start[b]..start[b + 1]]`.
+    start: Vec<u32>,
+    entries: Vec<u32>,
+    /// The last point counted in each bucket, so that a point whose cells collide in a
+    /// bucket is listed there once.
+    last: Vec<u32>,
+    /// Each bucket's next free entry while placing.
+    next: Vec<u32>,
+}
+
+impl Grid {
     /// Rebuilds the grid over this iteration's visible points; false when there are none
     /// (or no positive radius).
     fn rebuild(&mut self, vps: &[Option<VisiblePoint>], radius: &[f64]) -> bool {
@@ -160,45 +170,44 @@ impl Grid {
         if count == 0 || max_r <= 0.0 || !lo.is_finite() {
             return false;
         }
-        self.origin = lo;
-        self.inv_cell = 1.0 / max_r;
         let n = count * 2;
+        let lattice = Lattice {
+            origin: lo,
+            inv_cell: 1.0 / max_r,
+            buckets: n,
+        };
+        self.lattice = lattice;
         // Count, then place: bucket sizes, their prefix sums, then the entries.
         self.start.clear();
         self.start.resize(n + 1, 0);
         self.last.clear();
         self.last.resize(n, u32::MAX);
-        let (mut start, mut last) = (
-            std::mem::take(&mut self.start),
-            std::mem::take(&mut self.last),
-        );
-        self.for_each_cell(vps, radius, n, |i, b| {
-            if last[b] != i {
-                last[b] = i;
-                start[b + 1] += 1;
+        lattice.for_each_bucket(vps, radius, |i, b| {
+            if self.last[b] != i {
+                self.last[b] = i;
+                self.start[b + 1] += 1;
             }
         });
         for b in 0..n {
-            start[b + 1] += start[b];
+            self.start[b + 1] += self.start[b];
         }
         self.entries.clear();
-        self.entries.resize(start[n] as usize, 0);
-        last.fill(u32::MAX);
-        let mut next = start.clone();
-        let mut entries = std::mem::take(&mut self.entries);
-        self.for_each_cell(vps, radius, n, |i, b| {
-            if last[b] != i {
-                last[b] = i;
-                entries[next[b] as usize] = i;
-                next[b] += 1;
+        self.entries.resize(self.start[n] as usize, 0);
+        self.last.fill(u32::MAX);
+        self.next.clear();
+        self.next.extend_from_slice(&self.start[..n]);
+        lattice.for_each_bucket(vps, radius, |i, b| {
+            if self.last[b] != i {
+                self.last[b] = i;
+                self.entries[self.next[b] as usize] = i;
+                self.next[b] += 1;
             }
         });
-        (self.start, self.last, self.entries) = (start, last, entries);
         true
     }
 
     fn candidates(&self, p: Vec3) -> &[u32] {
-        let b = Self::hash(self.cell(p), self.start.len() - 1);
+        let b = self.lattice.bucket(self.lattice.cell(p));
         &self.entries[self.start[b] as usize..self.start[b + 1] as usize]
     }
 }

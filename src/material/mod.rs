@@ -136,7 +136,7 @@ impl Material {
     /// material must have passed [`Material::node_count`] (the scene builder checks).
     pub fn shading_bsdf(materials: &[Material], root: u32, ctx: &ShadingContext) -> ShadingBsdf {
         let mut out = ShadingBsdf::new();
-        push(materials, root, ctx, &mut out);
+        Self::shading_bsdf_into(materials, root, ctx, &mut out);
         out
     }
 
