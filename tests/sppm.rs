@@ -429,3 +429,69 @@ fn checkpointed_and_resumed_bit_identical() {
     assert!(e.contains("sppm") && !e.contains('\n'), "{e}");
     std::fs::remove_dir_all(&dir).ok();
 }
+
+/// Unpolarised Fresnel reflectance of a smooth interface of relative IOR `eta` at incidence
+/// cosine `cos_i` (from the outside, no total internal reflection), in f64.
+fn fresnel(cos_i: f64, eta: f64) -> f64 {
+    let sin_t2 = (1.0 - cos_i * cos_i) / (eta * eta);
+    let cos_t = (1.0 - sin_t2).sqrt();
+    let rs = (cos_i - eta * cos_t) / (cos_i + eta * cos_t);
+    let rp = (eta * cos_i - cos_t) / (eta * cos_i + cos_t);
+    0.5 * (rs * rs + rp * rp)
+}
+
+/// The camera pass splits the emission seen past a smooth glass surface between its two
+/// lobes instead of picking one. An orthographic camera looks at 45° onto a large glass
+/// plane under a constant sky of radiance 1: the reflection sees the sky with weight F, the
+/// refraction (radiance scaled by 1/η²) sees it with (1 − F)/η², so every pixel is
+/// F + (1 − F)/η² after a single iteration, with no noise at all: picking one lobe would
+/// give 1 or 1/η² per pixel. The thin dielectric (specular_transmittance 0.5) gives
+/// R' + 0.5 (1 − R') with R' = R + (1 − R)² R / (1 − R²), its slab's reflectance.
+#[test]
+fn glass_seen_by_the_camera_is_split_between_its_lobes() {
+    let eta = 1.5f64;
+    let f = fresnel(std::f64::consts::FRAC_1_SQRT_2, eta);
+    let slab = f + (1.0 - f).powi(2) * f / (1.0 - f * f);
+    let cases = [
+        (
+            r#"<bsdf type="dielectric"><float name="int_ior" value="1.5"/><float name="ext_ior" value="1"/></bsdf>"#,
+            f + (1.0 - f) / (eta * eta),
+        ),
+        (
+            r#"<bsdf type="thindielectric"><float name="int_ior" value="1.5"/><float name="ext_ior" value="1"/>
+                <rgb name="specular_transmittance" value="0.5"/></bsdf>"#,
+            slab + 0.5 * (1.0 - slab),
+        ),
+    ];
+    for (bsdf, want) in cases {
+        let xml = format!(
+            r#"<scene version="3.0.0">
+                <integrator type="sppm"><integer name="photon_count" value="100"/></integrator>
+                <sensor type="orthographic">
+                    <transform name="to_world">
+                        <lookat origin="0, 1, 1" target="0, 0, 0" up="0, 1, 0"/>
+                    </transform>
+                    <sampler type="independent"><integer name="sample_count" value="1"/></sampler>
+                    <film type="hdrfilm"><integer name="width" value="8"/><integer name="height" value="8"/>
+                        <rfilter type="box"/></film>
+                </sensor>
+                <shape type="rectangle">
+                    <transform name="to_world"><scale value="100"/><rotate x="1" angle="-90"/></transform>
+                    {bsdf}
+                </shape>
+                <emitter type="constant"><rgb name="radiance" value="1"/></emitter>
+            </scene>"#
+        );
+        let scene = scene_from_str(&xml);
+        let out = render_scene(&scene, 1, 7, None);
+        for p in out.film.image() {
+            for c in 0..3 {
+                let got = p[c] as f64;
+                assert!(
+                    (got - want).abs() < 1e-5 * want,
+                    "{bsdf}: pixel {got}, expected F + (1 - F)/eta^2 = {want}"
+                );
+            }
+        }
+    }
+}

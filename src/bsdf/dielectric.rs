@@ -9,8 +9,9 @@
 //! transmitted weight carries (η_i / η_t)², as Mitsuba applies in its radiance mode, and the
 //! sample reports η_t / η_i so that the path integrator's Russian roulette can undo it.
 
-use super::fresnel::{fresnel_dielectric, refract};
+use super::fresnel::{fresnel_dielectric, refract, DielectricFresnel};
 use super::{BsdfSample, Spectrum};
+use arrayvec::ArrayVec;
 use glam::Vec3;
 
 #[derive(Clone, Debug)]
@@ -35,25 +36,113 @@ impl Dielectric {
             return None;
         }
         let fr = fresnel_dielectric(wi.z, self.eta);
-        if u1 < fr.f {
-            Some(BsdfSample {
-                wo: Vec3::new(-wi.x, -wi.y, wi.z),
-                pdf: fr.f,
-                weight: self.specular_reflectance,
-                eta: 1.0,
-                delta: true,
-                null: false,
-            })
+        Some(if u1 < fr.f {
+            self.reflection(wi, fr)
         } else {
-            let wo = refract(wi, Vec3::Z, fr.cos_theta_t, fr.eta_ti);
-            Some(BsdfSample {
-                wo,
-                pdf: 1.0 - fr.f,
-                weight: self.specular_transmittance * (fr.eta_ti * fr.eta_ti),
-                eta: fr.eta_it,
-                delta: true,
-                null: false,
-            })
+            self.transmission(wi, fr)
+        })
+    }
+
+    /// Both lobes at once, each with its probability as `pdf` (those of nonzero
+    /// probability): `sample`'s outcomes, so that Σ pdf · weight · g(wo) over the branches is
+    /// the expectation of `weight · g(wo)` over `sample` for any g. For splitting a path here.
+    pub fn branches(&self, wi: Vec3) -> ArrayVec<BsdfSample, 2> {
+        let mut out = ArrayVec::new();
+        if wi.z == 0.0 || !wi.is_finite() {
+            return out;
         }
+        let fr = fresnel_dielectric(wi.z, self.eta);
+        if fr.f > 0.0 {
+            out.push(self.reflection(wi, fr));
+        }
+        if fr.f < 1.0 {
+            out.push(self.transmission(wi, fr));
+        }
+        out
+    }
+
+    fn reflection(&self, wi: Vec3, fr: DielectricFresnel) -> BsdfSample {
+        BsdfSample {
+            wo: Vec3::new(-wi.x, -wi.y, wi.z),
+            pdf: fr.f,
+            weight: self.specular_reflectance,
+            eta: 1.0,
+            delta: true,
+            null: false,
+        }
+    }
+
+    fn transmission(&self, wi: Vec3, fr: DielectricFresnel) -> BsdfSample {
+        BsdfSample {
+            wo: refract(wi, Vec3::Z, fr.cos_theta_t, fr.eta_ti),
+            pdf: 1.0 - fr.f,
+            weight: self.specular_transmittance * (fr.eta_ti * fr.eta_ti),
+            eta: fr.eta_it,
+            delta: true,
+            null: false,
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::super::thindielectric::ThinDielectric;
+    use super::*;
+
+    /// `branches` lists exactly `sample`'s outcomes with their probabilities: from both
+    /// sides, at grazing angles and under total internal reflection (one branch), for the
+    /// dielectric and the thin dielectric.
+    #[test]
+    fn branches_are_the_outcomes_of_sample() {
+        let dielectric = Dielectric {
+            eta: 1.5,
+            specular_reflectance: Spectrum::new(0.9, 0.8, 0.7),
+            specular_transmittance: Spectrum::new(0.6, 0.5, 0.4),
+        };
+        let thin = ThinDielectric {
+            eta: 1.33,
+            specular_reflectance: Spectrum::new(0.9, 0.8, 0.7),
+            specular_transmittance: Spectrum::new(0.6, 0.5, 0.4),
+        };
+        let mut tir = 0;
+        for k in 0..400 {
+            let cos = -1.0 + (k as f32 + 0.5) / 200.0;
+            let phi = k as f32 * 0.7;
+            let sin = (1.0 - cos * cos).sqrt();
+            let wi = Vec3::new(sin * phi.cos(), sin * phi.sin(), cos);
+            let cases: [(ArrayVec<BsdfSample, 2>, &dyn Fn(f32) -> Option<BsdfSample>); 2] = [
+                (dielectric.branches(wi), &|u| dielectric.sample(wi, u)),
+                (thin.branches(wi), &|u| thin.sample(wi, u)),
+            ];
+            for (branches, sample) in cases {
+                let total: f32 = branches.iter().map(|b| b.pdf).sum();
+                assert!(
+                    (total - 1.0).abs() < 1e-6,
+                    "wi {wi}: probabilities sum to {total}"
+                );
+                tir += (branches.len() == 1) as u32;
+                // u below the first branch's probability picks it, above picks the second
+                let mut seen = [0.0f32; 2];
+                for j in 0..1000 {
+                    let u = (j as f32 + 0.5) / 1000.0;
+                    let s = sample(u).expect("a sample");
+                    let b = branches
+                        .iter()
+                        .position(|b| b.wo == s.wo && b.weight == s.weight && b.pdf == s.pdf)
+                        .unwrap_or_else(|| panic!("wi {wi}, u {u}: {s:?} not a branch"));
+                    seen[b] += 1e-3;
+                }
+                for (b, share) in branches.iter().zip(seen) {
+                    assert!(
+                        (b.pdf - share).abs() < 2e-3,
+                        "wi {wi}: {b:?} sampled {share}"
+                    );
+                }
+            }
+        }
+        assert!(
+            tir > 0,
+            "no angle under total internal reflection was tested"
+        );
     }
 }

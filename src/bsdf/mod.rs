@@ -31,6 +31,7 @@ pub use roughdielectric::RoughDielectric;
 pub use roughplastic::RoughPlastic;
 pub use thindielectric::ThinDielectric;
 
+use arrayvec::ArrayVec;
 use glam::{Vec2, Vec3};
 
 /// An RGB triple of linear sRGB-primaries values.
@@ -179,6 +180,17 @@ impl Bsdf {
             Bsdf::RoughDielectric(_) => true,
             Bsdf::Principled(b) => b.has_smooth_lobe(wi),
             Bsdf::PrincipledThin(b) => b.has_smooth_lobe(wi),
+        }
+    }
+
+    /// Every outcome of `sample` with its probability as `pdf`, for the BSDFs made of two
+    /// Dirac-delta lobes picked at random (`dielectric`, `thindielectric`); `None` for the
+    /// others. Radiance mode.
+    pub fn delta_branches(&self, wi: Vec3) -> Option<ArrayVec<BsdfSample, 2>> {
+        match self {
+            Bsdf::Dielectric(b) => Some(b.branches(wi)),
+            Bsdf::ThinDielectric(b) => Some(b.branches(wi)),
+            _ => None,
         }
     }
 

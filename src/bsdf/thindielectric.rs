@@ -7,6 +7,7 @@
 
 use super::fresnel::fresnel_dielectric;
 use super::{BsdfSample, Spectrum};
+use arrayvec::ArrayVec;
 use glam::Vec3;
 
 #[derive(Clone, Debug)]
@@ -48,23 +49,49 @@ impl ThinDielectric {
             return None;
         }
         let r = self.reflectance(wi.z);
-        let (wo, pdf, weight, null) = if u1 < r {
-            (
-                Vec3::new(-wi.x, -wi.y, wi.z),
-                r,
-                self.specular_reflectance,
-                false,
-            )
+        Some(if u1 < r {
+            self.reflection(wi, r)
         } else {
-            (-wi, 1.0 - r, self.specular_transmittance, true)
-        };
-        Some(BsdfSample {
-            wo,
-            pdf,
-            weight,
+            self.transmission(wi, r)
+        })
+    }
+
+    /// Both lobes at once, each with its probability as `pdf` (those of nonzero
+    /// probability), as [`super::dielectric::Dielectric::branches`].
+    pub fn branches(&self, wi: Vec3) -> ArrayVec<BsdfSample, 2> {
+        let mut out = ArrayVec::new();
+        if wi.z == 0.0 || !wi.is_finite() {
+            return out;
+        }
+        let r = self.reflectance(wi.z);
+        if r > 0.0 {
+            out.push(self.reflection(wi, r));
+        }
+        if r < 1.0 {
+            out.push(self.transmission(wi, r));
+        }
+        out
+    }
+
+    fn reflection(&self, wi: Vec3, r: f32) -> BsdfSample {
+        BsdfSample {
+            wo: Vec3::new(-wi.x, -wi.y, wi.z),
+            pdf: r,
+            weight: self.specular_reflectance,
             eta: 1.0,
             delta: true,
-            null,
-        })
+            null: false,
+        }
+    }
+
+    fn transmission(&self, wi: Vec3, r: f32) -> BsdfSample {
+        BsdfSample {
+            wo: -wi,
+            pdf: 1.0 - r,
+            weight: self.specular_transmittance,
+            eta: 1.0,
+            delta: true,
+            null: true,
+        }
     }
 }

@@ -149,6 +149,16 @@ impl ShadingBsdf {
         self.smooth_node(0, wi)
     }
 
+    /// Every outcome of [`ShadingBsdf::sample`] with its probability as `pdf`, where the
+    /// BSDF is one plain `dielectric` or `thindielectric` in radiance mode
+    /// ([`Bsdf::delta_branches`]); `None` otherwise.
+    pub fn delta_branches(&self, wi: Vec3) -> Option<ArrayVec<BsdfSample, 2>> {
+        if self.importance {
+            return None;
+        }
+        self.as_leaf()?.delta_branches(wi)
+    }
+
     /// Whether the BSDF can send light to the other side of the surface.
     pub fn is_transmissive(&self) -> bool {
         self.nodes.iter().any(|n| match n {
