@@ -22,6 +22,7 @@ import argparse
 import json
 import os
 import platform
+import re
 import statistics
 import subprocess
 import sys
@@ -58,11 +59,30 @@ def penumbra_run(scene, spp, seed, threads, tmp):
            "--quiet", "-o", str(out), "--stats", str(stats)]
     for k, v in scene.get("defines", {}).items():
         cmd += ["-D", f"{k}={v}"]
+    if "integrator" in scene:
+        cmd += ["--integrator", scene["integrator"]]
     if threads:
         cmd += ["--threads", str(threads)]
     subprocess.run(cmd, check=True)
     seconds = json.loads(stats.read_text())["seconds"]
     return seconds, load_exr(out)
+
+
+def mitsuba_integrator(scene):
+    """The integrator Mitsuba renders the entry with where it is not the file's own, as the
+    validation study does: the entry's `mitsuba_integrator` (a JSON dict), or its penumbra
+    `integrator` override (`--integrator`) with the file's max_depth (a <default> the
+    entry's defines may set)."""
+    import mitsuba as mi
+
+    if "mitsuba_integrator" in scene:
+        return mi.load_dict(json.loads(scene["mitsuba_integrator"]))
+    if "integrator" in scene:
+        text = (ROOT / scene["file"]).read_text()
+        m = re.search(r'<default\s+name="max_depth"\s+value="(-?\d+)"', text)
+        depth = scene.get("defines", {}).get("max_depth", m.group(1) if m else "-1")
+        return mi.load_dict({"type": scene["integrator"], "max_depth": int(depth)})
+    return None
 
 
 def mitsuba_runs(scene, spp, seeds, variant):
@@ -72,11 +92,13 @@ def mitsuba_runs(scene, spp, seeds, variant):
     mi.set_variant(variant)
     defines = dict(scene.get("defines", {}))
     s = mi.load_file(str(ROOT / scene["file"]), **defines)
-    np.array(mi.render(s, spp=spp, seed=10_000))  # warm-up (JIT compile), untimed
+    integrator = mitsuba_integrator(scene)
+    extra = {"integrator": integrator} if integrator is not None else {}
+    np.array(mi.render(s, spp=spp, seed=10_000, **extra))  # warm-up (JIT compile), untimed
     results = []
     for seed in seeds:
         t0 = time.perf_counter()
-        img = np.array(mi.render(s, spp=spp, seed=seed))  # conversion forces evaluation
+        img = np.array(mi.render(s, spp=spp, seed=seed, **extra))  # conversion forces evaluation
         results.append((time.perf_counter() - t0, img[..., :3].astype(np.float64)))
     return results
 
