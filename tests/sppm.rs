@@ -485,8 +485,7 @@ fn glass_seen_by_the_camera_is_split_between_its_lobes() {
         let scene = scene_from_str(&xml);
         let out = render_scene(&scene, 1, 7, None);
         for p in out.film.image() {
-            for c in 0..3 {
-                let got = p[c] as f64;
+            for got in p.iter().map(|&v| v as f64) {
                 assert!(
                     (got - want).abs() < 1e-5 * want,
                     "{bsdf}: pixel {got}, expected F + (1 - F)/eta^2 = {want}"

@@ -89,6 +89,9 @@ mod tests {
     use super::super::thindielectric::ThinDielectric;
     use super::*;
 
+    /// `sample(wi, u)` of one BSDF at a fixed wi.
+    type SampleFn<'a> = &'a dyn Fn(f32) -> Option<BsdfSample>;
+
     /// `branches` lists exactly `sample`'s outcomes with their probabilities: from both
     /// sides, at grazing angles and under total internal reflection (one branch), for the
     /// dielectric and the thin dielectric.
@@ -110,7 +113,7 @@ mod tests {
             let phi = k as f32 * 0.7;
             let sin = (1.0 - cos * cos).sqrt();
             let wi = Vec3::new(sin * phi.cos(), sin * phi.sin(), cos);
-            let cases: [(ArrayVec<BsdfSample, 2>, &dyn Fn(f32) -> Option<BsdfSample>); 2] = [
+            let cases: [(ArrayVec<BsdfSample, 2>, SampleFn); 2] = [
                 (dielectric.branches(wi), &|u| dielectric.sample(wi, u)),
                 (thin.branches(wi), &|u| thin.sample(wi, u)),
             ];
