@@ -295,9 +295,20 @@ impl SampleStream {
         (d, mix64(((self.seq_seed as u64) << 32) | d as u64))
     }
 
-    /// Uniform in [0, 1).
-    #[inline]
+    /// Uniform in [0, 1). The `independent` sampler's draw is inlined at the call; the
+    /// others go through [`SampleStream::next_1d_structured`] (one call that matched on
+    /// every kind was not inlined: 34 instructions per draw, 4% of a Cornell box render).
+    #[inline(always)]
     pub fn next_1d(&mut self) -> f32 {
+        if matches!(self.kind, SamplerKind::Independent) {
+            self.rng.random::<f32>()
+        } else {
+            self.next_1d_structured()
+        }
+    }
+
+    #[inline(never)]
+    fn next_1d_structured(&mut self) -> f32 {
         match self.kind {
             SamplerKind::Independent => self.rng.random::<f32>(),
             SamplerKind::Stratified { jitter } => {
@@ -327,8 +338,18 @@ impl SampleStream {
         }
     }
 
-    #[inline]
+    #[inline(always)]
     pub fn next_2d(&mut self) -> Vec2 {
+        if matches!(self.kind, SamplerKind::Independent) {
+            let x = self.rng.random::<f32>();
+            Vec2::new(x, self.rng.random::<f32>())
+        } else {
+            self.next_2d_structured()
+        }
+    }
+
+    #[inline(never)]
+    fn next_2d_structured(&mut self) -> Vec2 {
         match self.kind {
             SamplerKind::Independent => {
                 let x = self.next_1d();
