@@ -118,6 +118,7 @@ mod tests {
                 (thin.branches(wi), &|u| thin.sample(wi, u)),
             ];
             for (branches, sample) in cases {
+                assert!(branches.iter().all(|b| b.pdf > 0.0), "{branches:?}");
                 let total: f32 = branches.iter().map(|b| b.pdf).sum();
                 assert!(
                     (total - 1.0).abs() < 1e-6,
@@ -147,5 +148,17 @@ mod tests {
             tir > 0,
             "no angle under total internal reflection was tested"
         );
+        // Index-matched (F = 0): transmission alone, never a reflection of probability 0.
+        let matched = Dielectric {
+            eta: 1.0,
+            ..dielectric.clone()
+        };
+        let wi = Vec3::new(0.6, 0.0, 0.8);
+        assert_eq!(matched.branches(wi).len(), 1, "{:?}", matched.branches(wi));
+        // Where `sample` has no outcome (grazing, not finite), neither has `branches`.
+        for wi in [Vec3::new(1.0, 0.0, 0.0), Vec3::new(f32::NAN, 0.0, 1.0)] {
+            assert!(dielectric.sample(wi, 0.5).is_none() && dielectric.branches(wi).is_empty());
+            assert!(thin.sample(wi, 0.5).is_none() && thin.branches(wi).is_empty());
+        }
     }
 }

@@ -362,21 +362,20 @@ impl Sppm {
         let Some(branches) = bsdf.delta_branches(wo) else {
             return 1.0;
         };
-        if branches.len() != 2 || !branches.iter().any(|b| b.wo == sampled.wo) {
+        // The picked lobe among them (always there: `branches` lists `sample`'s outcomes;
+        // without it, no split). A single branch (total internal reflection) has share 1.
+        let Some(picked) = branches.iter().position(|b| b.wo == sampled.wo) else {
             return 1.0;
-        }
-        let mut share = 1.0;
-        for b in &branches {
-            if b.wo == sampled.wo {
-                share = b.pdf;
-            } else {
+        };
+        for (k, b) in branches.iter().enumerate() {
+            if k != picked {
                 let ray = Scene::spawn_ray(si, si.frame.to_world(b.wo));
                 stats.rays += 1;
                 let hit = scene.intersect(&ray);
                 *ld += beta * b.weight * b.pdf * emission_at(scene, hit.as_ref(), ray.d);
             }
         }
-        share
+        branches[picked].pdf
     }
 
     /// Step 2 for one photon: its deposits.
