@@ -484,6 +484,10 @@ fn glass_seen_by_the_camera_is_split_between_its_lobes() {
         );
         let scene = scene_from_str(&xml);
         let out = render_scene(&scene, 1, 7, None);
+        // Three rays per pixel: the camera ray, the other lobe's and the picked lobe's (both
+        // escape to the sky). No photons: without a visible point there is nothing to gather.
+        let pixels = out.film.image().len() as u64;
+        assert_eq!(out.stats.path.rays, 3 * pixels, "{bsdf}: rays");
         for p in out.film.image() {
             for got in p.iter().map(|&v| v as f64) {
                 assert!(
