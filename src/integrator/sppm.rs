@@ -320,11 +320,11 @@ impl Sppm {
             let Some(bs) = bsdf.sample(wo, u1, u2) else {
                 break;
             };
-            emission_share = 1.0;
-            if depth < self.max_depth {
-                emission_share =
-                    self.split_emission(scene, &si, bsdf, wo, &bs, beta, &mut ld, stats);
-            }
+            emission_share = if depth < self.max_depth {
+                self.split_emission(scene, &si, bsdf, wo, &bs, beta, &mut ld, stats)
+            } else {
+                1.0
+            };
             beta *= bs.weight;
             if !beta.is_finite() || beta.max_element() <= 0.0 {
                 break;

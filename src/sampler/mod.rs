@@ -341,8 +341,8 @@ impl SampleStream {
     #[inline(always)]
     pub fn next_2d(&mut self) -> Vec2 {
         if matches!(self.kind, SamplerKind::Independent) {
-            let x = self.rng.random::<f32>();
-            Vec2::new(x, self.rng.random::<f32>())
+            let x = self.next_1d();
+            Vec2::new(x, self.next_1d())
         } else {
             self.next_2d_structured()
         }

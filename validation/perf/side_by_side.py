@@ -69,10 +69,11 @@ def penumbra_run(scene, spp, seed, threads, tmp):
 
 
 def mitsuba_integrator(scene):
-    """The integrator Mitsuba renders the entry with where it is not the file's own, as the
-    validation study does: the entry's `mitsuba_integrator` (a JSON dict), or its penumbra
-    `integrator` override (`--integrator`) with the file's max_depth (a <default> the
-    entry's defines may set)."""
+    """The integrator Mitsuba renders the entry with where it is not the file's own: the
+    entry's `mitsuba_integrator` (a JSON dict, as its reference was rendered), or, for an
+    entry whose penumbra render uses `integrator` (`--integrator`), Mitsuba's integrator of
+    that name with the file's max_depth (a <default> the entry's defines may set), so that
+    both sides run the same algorithm (the reference itself is the path-traced one)."""
     import mitsuba as mi
 
     if "mitsuba_integrator" in scene:
