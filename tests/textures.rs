@@ -61,3 +61,54 @@ fn a_bitmap_shared_by_several_textures_is_loaded_once() {
         "raw decodes differently"
     );
 }
+
+/// `Scene::bsdf_at` hands out a prebuilt BSDF only where the material does not vary: on the
+/// textures scene (bitmap, checkerboard, mask, blend, bump map and plain materials) the BSDF
+/// it returns at each camera hit evaluates, samples and weighs exactly as the one built at
+/// that hit (`Scene::shading_bsdf`), and both kinds of material are hit.
+#[test]
+fn prebuilt_bsdfs_equal_the_ones_built_at_each_hit() {
+    use glam::{Vec2, Vec3};
+    let scene = load("scenes/textures.xml", &[]);
+    let mut buf = penumbra::material::ShadingBsdf::new();
+    let (mut prebuilt, mut built) = (0, 0);
+    let n = 64;
+    for y in 0..n {
+        for x in 0..n {
+            let s = Vec2::new((x as f32 + 0.5) / n as f32, (y as f32 + 0.5) / n as f32);
+            let ray = scene.camera.generate_ray(s);
+            let Some(si) = scene.intersect(&ray) else {
+                continue;
+            };
+            let reference = scene.shading_bsdf(&si);
+            let buf_at: *const penumbra::material::ShadingBsdf = &buf;
+            let bsdf = scene.bsdf_at(&si, &mut buf);
+            if std::ptr::eq(bsdf, buf_at) {
+                built += 1;
+            } else {
+                prebuilt += 1;
+            }
+            let wi = si.frame.to_local(-ray.d.normalize());
+            for k in 0..8 {
+                let a = (k as f32 + 0.5) / 8.0;
+                let wo = Vec3::new(a - 0.5, 0.3 - a, 0.6).normalize();
+                assert_eq!(
+                    bsdf.eval(wi, wo),
+                    reference.eval(wi, wo),
+                    "pixel ({x}, {y})"
+                );
+                assert_eq!(bsdf.pdf(wi, wo), reference.pdf(wi, wo), "pixel ({x}, {y})");
+                let (u1, u2) = (a, Vec2::new(1.0 - a, a * a));
+                let (s1, s2) = (bsdf.sample(wi, u1, u2), reference.sample(wi, u1, u2));
+                assert_eq!(
+                    s1.map(|s| (s.wo, s.weight, s.pdf)),
+                    s2.map(|s| (s.wo, s.weight, s.pdf))
+                );
+            }
+        }
+    }
+    assert!(
+        prebuilt > 100 && built > 100,
+        "prebuilt {prebuilt}, built {built}"
+    );
+}

@@ -45,8 +45,8 @@ impl PathIntegrator {
         let mut prev_p = ray.o;
         let mut prev_bsdf_pdf = 1.0f32;
         let mut prev_delta = true;
-        // Filled in place at each vertex (see `Scene::shading_bsdf_into`).
-        let mut bsdf = ShadingBsdf::new();
+        // Filled in place at vertices whose material varies (see `Scene::bsdf_at`).
+        let mut bsdf_buf = ShadingBsdf::new();
         loop {
             stats.rays += 1;
             let Some(si) = scene.intersect(&ray) else {
@@ -91,13 +91,13 @@ impl PathIntegrator {
                 break;
             }
             stats.bounces += 1;
-            scene.shading_bsdf_into(&si, &mut bsdf);
+            let bsdf = scene.bsdf_at(&si, &mut bsdf_buf);
             let wi = si.frame.to_local(wi_world);
 
             // Next-event estimation.
             let u_light = sampler.next_2d();
             if bsdf.has_smooth_lobe(wi) {
-                if let Some(e) = sample_emitter(scene, &si, &bsdf, wi, u_light, stats) {
+                if let Some(e) = sample_emitter(scene, &si, bsdf, wi, u_light, stats) {
                     // Delta emitters cannot be found by BSDF sampling: no MIS.
                     let w = if e.delta {
                         1.0

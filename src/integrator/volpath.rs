@@ -304,8 +304,8 @@ impl VolPathIntegrator {
         let mut hit: Option<Option<SurfaceInteraction>> = None;
         let mut last_scatter_p = ray.o;
         let mut last_scatter_pdf = 1.0f32;
-        // Filled in place at each surface vertex (see `Scene::shading_bsdf_into`).
-        let mut bsdf = ShadingBsdf::new();
+        // Filled in place at surface vertices whose material varies (see `Scene::bsdf_at`).
+        let mut bsdf_buf = ShadingBsdf::new();
         loop {
             // Russian roulette and the depth limit.
             if throughput == Vec3::ZERO || !throughput.is_finite() {
@@ -421,7 +421,7 @@ impl VolPathIntegrator {
             let Some(si) = si else {
                 break;
             };
-            scene.shading_bsdf_into(&si, &mut bsdf);
+            let bsdf = scene.bsdf_at(&si, &mut bsdf_buf);
             let wi = si.frame.to_local(-ray.d);
 
             // Next-event estimation.

@@ -226,8 +226,8 @@ impl VolPathMisIntegrator {
         let mut hit: Option<Option<SurfaceInteraction>> = None;
         let mut last_scatter_p = ray.o;
         let mut last_event_was_null = false;
-        // Filled in place at each surface vertex (see `Scene::shading_bsdf_into`).
-        let mut bsdf = ShadingBsdf::new();
+        // Filled in place at surface vertices whose material varies (see `Scene::bsdf_at`).
+        let mut bsdf_buf = ShadingBsdf::new();
         loop {
             // Russian roulette (not right after a null collision) and the depth limit.
             if !last_event_was_null && depth > self.rr_depth {
@@ -335,7 +335,7 @@ impl VolPathMisIntegrator {
             let Some(si) = si else {
                 break;
             };
-            scene.shading_bsdf_into(&si, &mut bsdf);
+            let bsdf = scene.bsdf_at(&si, &mut bsdf_buf);
             let wi = si.frame.to_local(-ray.d);
 
             // Next-event estimation.

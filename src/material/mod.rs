@@ -132,6 +132,38 @@ impl Material {
         count(materials, root, 0).filter(|&n| n <= MAX_NODES)
     }
 
+    /// Whether material `root` is the same BSDF at every shading point: no texture other
+    /// than a constant one and no normal or bump map anywhere in its tree. Such a material is
+    /// built once per scene ([`crate::scene::Scene::bsdf_at`]) instead of at every hit.
+    pub fn is_uniform(materials: &[Material], root: u32) -> bool {
+        fn uniform(m: &[Material], i: u32, depth: usize) -> bool {
+            if depth > MAX_NODES {
+                return false;
+            }
+            let constant = |t: &[(BsdfParam, Texture)]| t.iter().all(|(_, t)| t.is_constant());
+            match m.get(i as usize) {
+                None => false,
+                Some(Material::Leaf { textures, .. })
+                | Some(Material::Principled { textures, .. })
+                | Some(Material::PrincipledThin { textures, .. }) => constant(textures),
+                Some(Material::Null) => true,
+                Some(Material::TwoSided { front, back }) => {
+                    uniform(m, *front, depth + 1) && uniform(m, *back, depth + 1)
+                }
+                Some(Material::Mask { opacity, nested }) => {
+                    opacity.is_constant() && uniform(m, *nested, depth + 1)
+                }
+                Some(Material::Blend { weight, nested }) => {
+                    weight.is_constant()
+                        && uniform(m, nested[0], depth + 1)
+                        && uniform(m, nested[1], depth + 1)
+                }
+                Some(Material::NormalMap { .. }) | Some(Material::BumpMap { .. }) => false,
+            }
+        }
+        uniform(materials, root, 0)
+    }
+
     /// The BSDF of material `root` at a shading point, every texture looked up once. The
     /// material must have passed [`Material::node_count`] (the scene builder checks).
     pub fn shading_bsdf(materials: &[Material], root: u32, ctx: &ShadingContext) -> ShadingBsdf {

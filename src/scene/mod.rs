@@ -53,6 +53,9 @@ pub struct Scene {
     /// attenuated on its way: the scene has media or a material with a null lobe (`null`,
     /// `mask`, `thindielectric`). Without, their shadow rays are plain occlusion tests.
     pub shadow_passthrough: bool,
+    /// Per material, its [`ShadingBsdf`] built once when it is the same at every shading
+    /// point ([`Material::is_uniform`]); see [`Scene::bsdf_at`].
+    pub(crate) uniform_bsdfs: Vec<Option<ShadingBsdf>>,
 }
 
 impl Scene {
@@ -280,6 +283,42 @@ impl Scene {
             ng: si.ng,
         };
         Material::shading_bsdf_into(&self.materials, shape.material, &ctx, out)
+    }
+
+    /// The BSDF at `si`: the material's prebuilt one when it does not vary over the surface
+    /// ([`Material::is_uniform`]), else [`Scene::shading_bsdf_into`] filled into `buf`. The
+    /// path integrators' hot loop: a material without textures costs no copy and no lookups
+    /// per hit. Radiance transport only (the prebuilt BSDFs are not in importance mode).
+    #[inline]
+    pub fn bsdf_at<'a>(
+        &'a self,
+        si: &SurfaceInteraction,
+        buf: &'a mut ShadingBsdf,
+    ) -> &'a ShadingBsdf {
+        let material = self.shapes[si.shape as usize].material as usize;
+        if let Some(Some(bsdf)) = self.uniform_bsdfs.get(material) {
+            return bsdf;
+        }
+        self.shading_bsdf_into(si, buf);
+        buf
+    }
+
+    /// The prebuilt BSDFs of [`Scene::bsdf_at`], one per material (`None` where it varies).
+    pub(crate) fn build_uniform_bsdfs(materials: &[Material]) -> Vec<Option<ShadingBsdf>> {
+        let frame = crate::geometry::Frame::from_normal(Vec3::Z);
+        let ctx = ShadingContext {
+            tex: TextureContext::at_uv(Vec2::ZERO),
+            frame,
+            dp_du: frame.s,
+            dp_dv: frame.t,
+            ng: frame.n,
+        };
+        (0..materials.len() as u32)
+            .map(|i| {
+                Material::is_uniform(materials, i)
+                    .then(|| Material::shading_bsdf(materials, i, &ctx))
+            })
+            .collect()
     }
 
     /// Probability of choosing emitter `i` for next-event estimation: uniform, as in

@@ -317,6 +317,7 @@ pub fn build(desc: &SceneDescription) -> Result<Scene> {
         });
     let mut scene = Scene {
         shadow_passthrough,
+        uniform_bsdfs: Scene::build_uniform_bsdfs(&materials.materials),
         shapes,
         materials: materials.materials,
         emitters,
