@@ -470,6 +470,44 @@ mod tests {
         assert_eq!(var[2 + 4], [1.0, 0.0, 1.0]);
     }
 
+    /// A light tracer's splat lands on each pixel with the filter's weight at the pixel
+    /// centre in x times that in y, over the sum of all such products: the tent's weights
+    /// written out here from its definition, 1 − |d| / r.
+    #[test]
+    fn splat_spreads_with_normalised_separable_weights() {
+        let r = 1.5;
+        let film = Film::new(12, 10, Filter::Tent { radius: r });
+        let mut pass = vec![[0.0; 3]; 12 * 10];
+        let (px, py) = (5.3f64, 4.8f64);
+        film.splat(
+            &mut pass,
+            Vec2::new(px as f32, py as f32),
+            Vec3::new(1.0, 2.0, 3.0),
+        );
+        let tent = |i: usize, p: f64| (1.0 - ((i as f64 + 0.5) - p).abs() / r).max(0.0);
+        let (sx, sy): (f64, f64) = (
+            (0..12).map(|i| tent(i, px)).sum(),
+            (0..10).map(|i| tent(i, py)).sum(),
+        );
+        let mut total = 0.0;
+        for y in 0..10 {
+            for x in 0..12 {
+                let want = tent(x, px) * tent(y, py) / (sx * sy);
+                let got = pass[x + 12 * y];
+                for (c, k) in [1.0, 2.0, 3.0].iter().enumerate() {
+                    assert!(
+                        (got[c] - k * want).abs() <= 1e-6 * k,
+                        "({x}, {y}) {got:?} {want}"
+                    );
+                }
+                total += got[0];
+            }
+        }
+        assert!((total - 1.0).abs() < 1e-6, "{total}");
+        // Three pixels per axis are reached (|d| < 1.5): a real spread, not one pixel.
+        assert_eq!(pass.iter().filter(|p| p[0] > 0.0).count(), 9);
+    }
+
     #[test]
     fn constant_sum_of_many_samples_is_exact() {
         // 2^20 samples of one f32 value: the f64 mean returns the value bit for bit.
