@@ -86,11 +86,15 @@ def mitsuba_integrator(scene):
     return None
 
 
-def mitsuba_runs(scene, spp, seeds, variant):
+def mitsuba_runs(scene, spp, seeds, variant, threads):
+    import drjit as dr
     import mitsuba as mi
     import numpy as np
 
     mi.set_variant(variant)
+    if threads:
+        # Dr.Jit's thread pool renders every variant, scalar_rgb included.
+        dr.set_thread_count(threads)
     defines = dict(scene.get("defines", {}))
     s = mi.load_file(str(ROOT / scene["file"]), **defines)
     integrator = mitsuba_integrator(scene)
@@ -110,7 +114,9 @@ def main():
     ap.add_argument("--repeat", type=int, default=3)
     ap.add_argument("--scene", action="append", help="only these scenes (repeatable)")
     ap.add_argument("--variants", default="llvm_ad_rgb,scalar_rgb")
-    ap.add_argument("--threads", type=int, default=None, help="penumbra --threads")
+    ap.add_argument("--threads", type=int, default=None,
+                    help="threads of both renderers (penumbra --threads, Mitsuba's Dr.Jit "
+                         "thread pool); default: every core")
     ap.add_argument("--out", type=Path, help="also write the markdown table here")
     args = ap.parse_args()
     if os.path.exists(LLVM):
@@ -137,7 +143,7 @@ def main():
             row = {"scene": sc["name"], "penumbra_s": pt, "penumbra_mse": pm,
                    "penumbra_mpaths": paths / pt / 1e6}
             for v in variants:
-                runs = mitsuba_runs(sc, args.spp, seeds, v)
+                runs = mitsuba_runs(sc, args.spp, seeds, v, args.threads)
                 mt = statistics.median(t for t, _ in runs)
                 mm = statistics.median(mse(img, ref) for _, img in runs)
                 row[v] = {"s": mt, "mse": mm, "ratio": (mt * mm) / (pt * pm),
@@ -148,10 +154,12 @@ def main():
     head = ["scene", "penumbra s", "Mpath/s", "MSE"]
     for v in variants:
         head += [f"{v} s", "Mpath/s", "MSE", f"efficiency ratio vs {v}"]
+    threads = f" --threads {args.threads}" if args.threads else ""
     lines = [
-        f"Side-by-side at {args.spp} spp, medians of {args.repeat} seeds; "
+        f"Side-by-side at {args.spp} spp, medians of {args.repeat} seeds, "
+        f"{args.threads or os.cpu_count()} thread(s); "
         f"machine: {platform.machine()}, {os.cpu_count()} cores; "
-        f"command: `python validation/perf/side_by_side.py --spp {args.spp} --repeat {args.repeat}`",
+        f"command: `python validation/perf/side_by_side.py --spp {args.spp} --repeat {args.repeat}{threads}`",
         "",
         "| " + " | ".join(head) + " |",
         "|" + "---|" * len(head),
