@@ -125,4 +125,23 @@ mod tests {
             assert!((albedo - 1.0).abs() < 1e-4, "n = {n}: {albedo}");
         }
     }
+
+    #[test]
+    fn pdf_of_normal_incidence_integrates_to_one() {
+        // At normal incidence the specular lobe (n + 1)/(2π) cosⁿ α lies wholly above the
+        // horizon, so the mixture with the cosine lobe is a density: ∫ pdf dω = 1, by the same
+        // quadrature in θ (the pdf does not depend on φ here).
+        for (n, kd, ks) in [(1.0f32, 0.5, 0.5), (10.0, 0.2, 0.8), (200.0, 0.0, 1.0)] {
+            let b = Phong::new(n, Spectrum::splat(kd), Spectrum::splat(ks));
+            let steps = 200_000;
+            let mut sum = 0.0f64;
+            for k in 0..steps {
+                let theta = (k as f64 + 0.5) / steps as f64 * std::f64::consts::FRAC_PI_2;
+                let wo = Vec3::new(theta.sin() as f32, 0.0, theta.cos() as f32);
+                sum += b.pdf(Vec3::Z, wo) as f64 * theta.sin() * 2.0 * std::f64::consts::PI;
+            }
+            let total = sum * std::f64::consts::FRAC_PI_2 / steps as f64;
+            assert!((total - 1.0).abs() < 1e-4, "n = {n}: {total}");
+        }
+    }
 }
