@@ -565,6 +565,27 @@ mod tests {
     use super::*;
     use crate::sampler::SampleStream;
 
+    /// A lobe of probability 0 is never picked, not even at u1 = 0 (which low-discrepancy
+    /// samplers draw exactly): a fully metallic principled has no diffuse lobe, so u1 = 0
+    /// samples the specular lobe, the same direction as u1 just above 0.
+    #[test]
+    fn a_lobe_of_probability_zero_is_not_picked_at_u1_zero() {
+        let b = Principled::new(PrincipledParams {
+            metallic: 1.0,
+            roughness: 0.3,
+            ..Default::default()
+        });
+        let wi = Vec3::new(0.3, 0.1, 0.9).normalize();
+        let mut sampled = 0;
+        for k in 0..64 {
+            let u2 = Vec2::new((k % 8) as f32 / 8.0 + 0.06, (k / 8) as f32 / 8.0 + 0.06);
+            let at_zero = b.sample(wi, 0.0, u2).map(|s| s.wo);
+            assert_eq!(at_zero, b.sample(wi, 1e-6, u2).map(|s| s.wo), "u2 = {u2}");
+            sampled += at_zero.is_some() as usize;
+        }
+        assert!(sampled > 32, "{sampled}");
+    }
+
     #[test]
     fn principled_specular_maps_to_eta() {
         let p = PrincipledParams::default();

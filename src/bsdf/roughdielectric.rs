@@ -31,7 +31,9 @@ pub(super) fn half_vector(wi: Vec3, wo: Vec3, eta: f32) -> Option<(Vec3, f32, bo
     if ci == 0.0 || co == 0.0 {
         return None;
     }
-    let reflect = ci * co > 0.0;
+    // By the signs, not the product's (Mitsuba's `cos θi cos θo > 0`): the product of two
+    // grazing cosines underflows to ±0 and would make a reflection a refraction.
+    let reflect = (ci > 0.0) == (co > 0.0);
     let eta_rel = if reflect {
         1.0
     } else if ci > 0.0 {
@@ -135,5 +137,30 @@ impl RoughDielectric {
         };
         let pdf = self.pdf(wi, wo);
         BsdfSample::smooth(wo, pdf, || self.eval(wi, wo), eta)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Reflection or refraction is decided by the sides of wi and wo, also for grazing
+    /// directions whose cosines' product underflows (1e-25 · 1e-25 is 0 in f32).
+    #[test]
+    fn half_vector_tells_reflection_by_the_sides() {
+        let g = 1e-25f32;
+        let graze = |z: f32| Vec3::new((1.0 - z * z).sqrt(), 0.0, z);
+        let up = Vec3::new(0.6, 0.0, 0.8);
+        for (wi, wo, reflect) in [
+            (graze(g), graze(g), true),
+            (graze(-g), graze(-g), true),
+            (graze(g), graze(-g), false),
+            (up, graze(g), true),
+            (up, Vec3::new(0.0, 0.6, -0.8), false),
+        ] {
+            let (_, eta, r) = half_vector(wi, wo, 1.5).unwrap();
+            assert_eq!(r, reflect, "wi {wi} wo {wo}");
+            assert_eq!(eta == 1.0, reflect);
+        }
     }
 }
