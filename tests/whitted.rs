@@ -2,7 +2,7 @@
 //! no randomness given the camera ray with delta lights and plain BSDFs, Fresnel-weighted
 //! splitting at glass, and one-line errors. Agreement with Mitsuba's path tracer where
 //! Whitted ray tracing is exact is checked by the validation entry `whitted-exact-whitted`
-//! (tests/validation.rs).
+//! (tests/validation.rs). Also the `direct` integrator's ray and bounce counters.
 
 mod common;
 use common::*;
@@ -148,6 +148,24 @@ fn rays_and_bounces_are_counted() {
     let l = scene.integrator.li(&scene, ray, &mut sampler, &mut stats);
     assert!(l.max_element() > 0.0);
     assert_eq!((stats.rays, stats.bounces), (2, 1));
+}
+
+/// The same counters for Mitsuba's `direct` integrator on the plane: a camera ray that hits
+/// it is one bounce; its rays are the camera ray, the shadow ray to the point light and the
+/// BSDF sample's ray (one emitter and one BSDF sample by default).
+#[test]
+fn direct_counts_rays_and_bounces() {
+    let xml = plane_xml(2, "").replace(
+        r#"<integrator type="whitted"><integer name="max_depth" value="2"/></integrator>"#,
+        r#"<integrator type="direct"/>"#,
+    );
+    let scene = scene_from_str(&xml);
+    let ray = scene.camera.generate_ray(Vec2::splat(0.5));
+    let mut stats = PathStats::default();
+    let mut sampler = SampleStream::new(0, 7, 0);
+    let l = scene.integrator.li(&scene, ray, &mut sampler, &mut stats);
+    assert!(l.max_element() > 0.0);
+    assert_eq!((stats.rays, stats.bounces), (3, 1));
 }
 
 #[test]

@@ -142,3 +142,29 @@ impl SpotEmitter {
         ))
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Mitsuba's `direction_to_uv`: the texture spans the cutoff cone, uv = ½ + ½ (x, y) /
+    /// (z tan θ_cutoff): the axis at the centre, the cone's edge at the texture's border.
+    #[test]
+    fn texture_coordinates_span_the_cutoff_cone() {
+        let spot = SpotEmitter::new(DMat4::IDENTITY, Spectrum::ONE, 30.0, 20.0, None).unwrap();
+        let c = 30f32.to_radians();
+        let at = |theta: f32, phi: f32| {
+            let (s, z) = theta.sin_cos();
+            spot.direction_to_uv(Vec3::new(s * phi.cos(), s * phi.sin(), z))
+        };
+        let close = |a: Vec2, b: Vec2| (a - b).abs().max_element() < 1e-5;
+        assert!(close(at(0.0, 0.0), Vec2::splat(0.5)));
+        assert!(close(at(c, 0.0), Vec2::new(1.0, 0.5)), "{}", at(c, 0.0));
+        assert!(close(at(c, std::f32::consts::PI), Vec2::new(0.0, 0.5)));
+        let half = 0.5 + 0.5 * (0.5 * c).tan() / c.tan();
+        assert!(close(
+            at(0.5 * c, std::f32::consts::FRAC_PI_2),
+            Vec2::new(0.5, half)
+        ));
+    }
+}
