@@ -82,7 +82,12 @@ def mitsuba_integrator(scene):
         text = (ROOT / scene["file"]).read_text()
         m = re.search(r'<default\s+name="max_depth"\s+value="(-?\d+)"', text)
         depth = scene.get("defines", {}).get("max_depth", m.group(1) if m else "-1")
-        return mi.load_dict({"type": scene["integrator"], "max_depth": int(depth)})
+        try:
+            return mi.load_dict({"type": scene["integrator"], "max_depth": int(depth)})
+        except RuntimeError:
+            # penumbra's own integrators (whitted) have no Mitsuba plugin: Mitsuba renders
+            # the file's integrator, the one its reference was rendered with.
+            return None
     return None
 
 
