@@ -94,12 +94,24 @@ def mitsuba_integrator(scene):
 def mitsuba_runs(scene, spp, seeds, variant, threads):
     import drjit as dr
     import mitsuba as mi
-    import numpy as np
 
     mi.set_variant(variant)
     if threads:
-        # Dr.Jit's thread pool renders every variant, scalar_rgb included.
+        # Dr.Jit's thread pool renders every variant, scalar_rgb included. It is restored
+        # afterwards: with one thread, Mitsuba's EXR reader (load_exr) hangs.
+        default_threads = dr.thread_count()
         dr.set_thread_count(threads)
+        try:
+            return mitsuba_renders(scene, spp, seeds)
+        finally:
+            dr.set_thread_count(default_threads)
+    return mitsuba_renders(scene, spp, seeds)
+
+
+def mitsuba_renders(scene, spp, seeds):
+    import mitsuba as mi
+    import numpy as np
+
     defines = dict(scene.get("defines", {}))
     s = mi.load_file(str(ROOT / scene["file"]), **defines)
     integrator = mitsuba_integrator(scene)
