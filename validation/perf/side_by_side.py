@@ -94,34 +94,28 @@ def mitsuba_integrator(scene):
 def mitsuba_runs(scene, spp, seeds, variant, threads):
     import drjit as dr
     import mitsuba as mi
-
-    mi.set_variant(variant)
-    if threads:
-        # Dr.Jit's thread pool renders every variant, scalar_rgb included. It is restored
-        # afterwards: with one thread, Mitsuba's EXR reader (load_exr) hangs.
-        default_threads = dr.thread_count()
-        dr.set_thread_count(threads)
-        try:
-            return mitsuba_renders(scene, spp, seeds)
-        finally:
-            dr.set_thread_count(default_threads)
-    return mitsuba_renders(scene, spp, seeds)
-
-
-def mitsuba_renders(scene, spp, seeds):
-    import mitsuba as mi
     import numpy as np
 
+    mi.set_variant(variant)
     defines = dict(scene.get("defines", {}))
     s = mi.load_file(str(ROOT / scene["file"]), **defines)
     integrator = mitsuba_integrator(scene)
     extra = {"integrator": integrator} if integrator is not None else {}
-    np.array(mi.render(s, spp=spp, seed=10_000, **extra))  # warm-up (JIT compile), untimed
-    results = []
-    for seed in seeds:
-        t0 = time.perf_counter()
-        img = np.array(mi.render(s, spp=spp, seed=seed, **extra))  # conversion forces evaluation
-        results.append((time.perf_counter() - t0, img[..., :3].astype(np.float64)))
+    # Dr.Jit's thread pool renders every variant, scalar_rgb included. It is narrowed only
+    # around the renders: with one thread, Mitsuba's EXR reader (scene textures, load_exr)
+    # hangs.
+    default_threads = dr.thread_count()
+    if threads:
+        dr.set_thread_count(threads)
+    try:
+        np.array(mi.render(s, spp=spp, seed=10_000, **extra))  # warm-up (JIT compile), untimed
+        results = []
+        for seed in seeds:
+            t0 = time.perf_counter()
+            img = np.array(mi.render(s, spp=spp, seed=seed, **extra))  # forces evaluation
+            results.append((time.perf_counter() - t0, img[..., :3].astype(np.float64)))
+    finally:
+        dr.set_thread_count(default_threads)
     return results
 
 
