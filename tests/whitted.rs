@@ -141,13 +141,18 @@ fn without_shadows_an_occluder_casts_no_shadow() {
 /// max_depth 2 is one bounce and two rays (its own and the shadow ray to the point light).
 #[test]
 fn rays_and_bounces_are_counted() {
-    let scene = plane_scene(2, "");
+    let (l, stats) = centre_pixel_with_stats(&plane_scene(2, ""));
+    assert!(l.max_element() > 0.0);
+    assert_eq!((stats.rays, stats.bounces), (2, 1));
+}
+
+/// The radiance of the image centre's camera ray and the counters of computing it.
+fn centre_pixel_with_stats(scene: &Scene) -> (Vec3, PathStats) {
     let ray = scene.camera.generate_ray(Vec2::splat(0.5));
     let mut stats = PathStats::default();
     let mut sampler = SampleStream::new(0, 7, 0);
-    let l = scene.integrator.li(&scene, ray, &mut sampler, &mut stats);
-    assert!(l.max_element() > 0.0);
-    assert_eq!((stats.rays, stats.bounces), (2, 1));
+    let l = scene.integrator.li(scene, ray, &mut sampler, &mut stats);
+    (l, stats)
 }
 
 /// The same counters for Mitsuba's `direct` integrator on the plane: a camera ray that hits
@@ -159,11 +164,7 @@ fn direct_counts_rays_and_bounces() {
         r#"<integrator type="whitted"><integer name="max_depth" value="2"/></integrator>"#,
         r#"<integrator type="direct"/>"#,
     );
-    let scene = scene_from_str(&xml);
-    let ray = scene.camera.generate_ray(Vec2::splat(0.5));
-    let mut stats = PathStats::default();
-    let mut sampler = SampleStream::new(0, 7, 0);
-    let l = scene.integrator.li(&scene, ray, &mut sampler, &mut stats);
+    let (l, stats) = centre_pixel_with_stats(&scene_from_str(&xml));
     assert!(l.max_element() > 0.0);
     assert_eq!((stats.rays, stats.bounces), (3, 1));
 }
