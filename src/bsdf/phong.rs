@@ -106,6 +106,21 @@ impl Phong {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use std::f64::consts::{FRAC_PI_2, PI};
+
+    /// ∫ f(wo) dω over the upper hemisphere for an f that depends on θo only, by the midpoint
+    /// rule in θ (200,000 steps).
+    fn integrate_over_theta(f: impl Fn(Vec3) -> f64) -> f64 {
+        let steps = 200_000;
+        let sum: f64 = (0..steps)
+            .map(|k| {
+                let theta = (k as f64 + 0.5) / steps as f64 * FRAC_PI_2;
+                let wo = Vec3::new(theta.sin() as f32, 0.0, theta.cos() as f32);
+                f(wo) * theta.sin() * 2.0 * PI
+            })
+            .sum();
+        sum * FRAC_PI_2 / steps as f64
+    }
 
     #[test]
     fn specular_lobe_of_normal_incidence_integrates_to_one() {
@@ -113,15 +128,7 @@ mod tests {
         // the lobe alone (kd = 0, ks = 1) has albedo 1 at normal incidence, by quadrature in θ.
         for n in [1.0f32, 10.0, 200.0] {
             let b = Phong::new(n, Spectrum::ZERO, Spectrum::ONE);
-            let steps = 200_000;
-            let mut sum = 0.0f64;
-            for k in 0..steps {
-                let theta = (k as f64 + 0.5) / steps as f64 * std::f64::consts::FRAC_PI_2;
-                let wo = Vec3::new(theta.sin() as f32, 0.0, theta.cos() as f32);
-                let f = b.eval(Vec3::Z, wo).x as f64;
-                sum += f * theta.sin() * 2.0 * std::f64::consts::PI;
-            }
-            let albedo = sum * std::f64::consts::FRAC_PI_2 / steps as f64;
+            let albedo = integrate_over_theta(|wo| b.eval(Vec3::Z, wo).x as f64);
             assert!((albedo - 1.0).abs() < 1e-4, "n = {n}: {albedo}");
         }
     }
@@ -133,14 +140,7 @@ mod tests {
         // quadrature in θ (the pdf does not depend on φ here).
         for (n, kd, ks) in [(1.0f32, 0.5, 0.5), (10.0, 0.2, 0.8), (200.0, 0.0, 1.0)] {
             let b = Phong::new(n, Spectrum::splat(kd), Spectrum::splat(ks));
-            let steps = 200_000;
-            let mut sum = 0.0f64;
-            for k in 0..steps {
-                let theta = (k as f64 + 0.5) / steps as f64 * std::f64::consts::FRAC_PI_2;
-                let wo = Vec3::new(theta.sin() as f32, 0.0, theta.cos() as f32);
-                sum += b.pdf(Vec3::Z, wo) as f64 * theta.sin() * 2.0 * std::f64::consts::PI;
-            }
-            let total = sum * std::f64::consts::FRAC_PI_2 / steps as f64;
+            let total = integrate_over_theta(|wo| b.pdf(Vec3::Z, wo) as f64);
             assert!((total - 1.0).abs() < 1e-4, "n = {n}: {total}");
         }
     }
