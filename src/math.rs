@@ -1,5 +1,6 @@
 //! Numerical building blocks shared by the renderer and the study: the complementary error
-//! function and Gauss–Legendre quadrature rules.
+//! function, a first guess of the inverse error function, and Gauss–Legendre quadrature
+//! rules.
 
 /// The complementary error function (Chebyshev fit, relative error < 1.2e-7 everywhere).
 pub fn erfc(x: f64) -> f64 {
@@ -19,6 +20,48 @@ pub fn erfc(x: f64) -> f64 {
     } else {
         2.0 - ans
     }
+}
+
+/// A first guess of erf⁻¹(y) for Newton iterations: Giles's form (2010, "Approximating the
+/// erfinv function", GPU Computing Gems, Jade Edition, ch. 10), erf⁻¹(y) = y p(w) with
+/// w = −ln(1 − y²) and p a polynomial of degree 8 in w − 2.5 (w < 5) or √w − 3 (w ≥ 5), with
+/// coefficients fitted for penumbra by least squares in f64 against erf⁻¹ from Newton's
+/// method on `libm`'s erf. Relative error below 5e-7 for |y| ≤ 0.9966 (w < 5) and 3e-6 up to
+/// |y| = 1 − 1e-12.
+pub fn erfinv_approx(y: f64) -> f64 {
+    let w = -((1.0 - y) * (1.0 + y)).ln();
+    let (w, coefficients) = if w < 5.0 {
+        (
+            w - 2.5,
+            [
+                2.293_776_920e-8,
+                3.496_567_580e-7,
+                -3.459_431_552e-6,
+                -4.452_791_099e-6,
+                2.183_333_281e-4,
+                -1.253_561_607e-3,
+                -4.177_375_071e-3,
+                2.466_406_363e-1,
+                1.501_409_357,
+            ],
+        )
+    } else {
+        (
+            w.sqrt() - 3.0,
+            [
+                2.683_479_057e-5,
+                -2.851_352_701e-4,
+                1.288_861_161e-3,
+                -3.314_018_412e-3,
+                5.665_738_302e-3,
+                -7.718_132_258e-3,
+                9.462_820_449e-3,
+                1.001_680_713,
+                2.832_976_082,
+            ],
+        )
+    };
+    coefficients.iter().fold(0.0, |p, c| c + p * w) * y
 }
 
 /// The nodes and weights of the n-point Gauss–Legendre rule on [−1, 1] (exact for
@@ -69,6 +112,40 @@ pub fn gauss_legendre(n: usize) -> (Vec<f64>, Vec<f64>) {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// Against tabulated values of erf⁻¹ (to 1e-6 relative) and, over (−1, 1) up to
+    /// 1 − 1e-12, against erfc: a relative error ε in x = erf⁻¹(y) moves erfc(x) by about
+    /// (2x² + 1) ε relative, so with ε ≤ 3e-6 and erfc's own 1.2e-7, erfc(x) = 1 − y to
+    /// (2x² + 1) · 3e-6 + 2e-7.
+    #[test]
+    fn erfinv_approx_inverts_erf() {
+        for (y, want) in [
+            (0.5, 0.476_936_276_204_469_9),
+            (0.9, 1.163_087_153_676_674_3),
+            (0.99, 1.821_386_367_718_449_6),
+            (0.999, 2.326_753_765_513_524_6),
+        ] {
+            for (y, want) in [(y, want), (-y, -want)] {
+                let got = erfinv_approx(y);
+                assert!(
+                    (got - want).abs() <= 1e-6 * want.abs(),
+                    "{y}: {got} vs {want}"
+                );
+            }
+        }
+        for k in 1..=1200 {
+            let y = if k <= 1000 {
+                k as f64 / 1001.0
+            } else {
+                1.0 - 10f64.powf(-3.0 - 9.0 * (k - 1000) as f64 / 200.0)
+            };
+            let x = erfinv_approx(y);
+            let bound = (2.0 * x * x + 1.0) * 3e-6 + 2e-7;
+            let err = ((erfc(x) - (1.0 - y)) / (1.0 - y)).abs();
+            assert!(err <= bound, "y = {y}: x = {x}, erfc off by {err:e}");
+            assert_eq!(erfinv_approx(-y), -x);
+        }
+    }
 
     /// Against tabulated rules (Abramowitz and Stegun, Table 25.4) and polynomial exactness.
     #[test]

@@ -15,14 +15,15 @@
 //!   method of Heitz and d'Eon 2014, "Importance Sampling Microfacet-Based BSDFs using the
 //!   Distribution of Visible Normals": in the stretched configuration the visible slopes
 //!   factor into a slope along the incident azimuth with density ∝ (cot θ − x) e^{−x²}
-//!   (x < cot θ), sampled by inverting its CDF with safeguarded Newton iterations in f64, and
-//!   an independent normal slope across it.
+//!   (x < cot θ), sampled by inverting its CDF with safeguarded Halley iterations in f64 from
+//!   a close first guess, and an independent normal slope across it.
 //! - Without visible sampling: D(m) cos θ_m, sampled in slope space (Walter et al. 2007 §5.2
 //!   eqs. 28 and 35, anisotropic by stretching the slopes).
 
-use crate::math::erfc;
+use crate::math::{erfc, erfinv_approx};
 use crate::sampling::square_to_uniform_disk_concentric;
 use glam::{Vec2, Vec3};
+use std::sync::LazyLock;
 
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum MicrofacetType {
@@ -270,10 +271,18 @@ impl Microfacet {
 /// configuration, with density ∝ (1 − x tan θ) e^{−x²} for x < cot θ: solves
 /// H(x) = u H(cot θ) with H(x) = (√π/2)(1 + erf x) + tan θ e^{−x²}/2, the CDF times cot θ.
 /// `tan_theta` = 0 gives the normal slope density e^{−x²}/√π.
+///
+/// Safeguarded Halley iterations in f64 from a close first guess: H is the sum of a Gaussian
+/// part (√π/2)(1 + erf x), whose inverse is erf⁻¹, and a part tan θ e^{−x²}/2 whose inverse is
+/// −√(−ln u) (for x < 0); the guess blends the two inverses by their shares of H(cot θ). The
+/// iteration stops when a step falls below 1e-7 (the error after it is then far below the f32
+/// normal the slope becomes). On average 1.2 iterations for tan θ = 0 and 3.8 otherwise, two
+/// exponentials each (Newton's method from the midpoint with a 1e-15 residual bound took 6–7
+/// iterations of three).
 fn sample_visible_slope_beckmann(tan_theta: f64, u: f64) -> f64 {
     const SQRT_PI: f64 = 1.772_453_850_905_516;
-    let h = |x: f64| 0.5 * SQRT_PI * erfc(-x) + 0.5 * tan_theta * (-x * x).exp();
-    let dh = |x: f64| (1.0 - x * tan_theta) * (-x * x).exp();
+    const TOLERANCE: f64 = 1e-7;
+    let u = u.clamp(0.0, 1.0);
     // Outside [−6, 6] the density carries less than 1e-15 of the mass.
     let mut lo = -6.0f64;
     let mut hi = if tan_theta > 0.0 {
@@ -281,31 +290,58 @@ fn sample_visible_slope_beckmann(tan_theta: f64, u: f64) -> f64 {
     } else {
         6.0
     };
-    let (h_lo, h_hi) = (h(lo), h(hi));
-    let target = h_lo + u.clamp(0.0, 1.0) * (h_hi - h_lo);
-    let mut x = 0.5 * (lo + hi);
-    for _ in 0..100 {
-        let f = h(x) - target;
-        if f.abs() <= 1e-15 * target {
-            return x;
-        }
+    // H's two parts, with e = e^{−x²}; at x = ±6 from constants (erfc(6) and e^{−36}).
+    static ERFC_6: LazyLock<f64> = LazyLock::new(|| erfc(6.0));
+    let gauss = |x: f64| 0.5 * SQRT_PI * erfc(-x);
+    let h_lo = 0.5 * SQRT_PI * *ERFC_6 + 0.5 * tan_theta * (-36.0f64).exp();
+    let (gauss_hi, tilt_hi) = if hi == 6.0 {
+        (
+            0.5 * SQRT_PI * (2.0 - *ERFC_6),
+            0.5 * tan_theta * (-36.0f64).exp(),
+        )
+    } else {
+        (gauss(hi), 0.5 * tan_theta * (-hi * hi).exp())
+    };
+    let target = h_lo + u * (gauss_hi + tilt_hi - h_lo);
+    let x_gauss = erfinv_approx((2.0 * u - 1.0).clamp(-1.0 + 1e-16, 1.0 - 1e-16));
+    let mut x = if tan_theta > 0.0 {
+        let x_tilt = -(-u.max(1e-300).ln()).sqrt();
+        (gauss_hi * x_gauss + tilt_hi * x_tilt) / (gauss_hi + tilt_hi)
+    } else {
+        x_gauss
+    };
+    if !(x > lo && x < hi) {
+        x = 0.5 * (lo + hi);
+    }
+    for _ in 0..64 {
+        let e = (-x * x).exp();
+        let f = gauss(x) + 0.5 * tan_theta * e - target;
         if f > 0.0 {
             hi = x;
-        } else {
+        } else if f < 0.0 {
             lo = x;
+        } else {
+            return x;
         }
-        if hi - lo < 1e-12 {
-            break;
+        // Halley's step (cubic convergence) with H′(x) = (1 − x tan θ) e^{−x²}, positive
+        // below cot θ, and H″(x) = (−tan θ − 2x (1 − x tan θ)) e^{−x²}: no new exponential.
+        let d1 = (1.0 - x * tan_theta) * e;
+        let d2 = (-tan_theta - 2.0 * x * (1.0 - x * tan_theta)) * e;
+        let next = x - 2.0 * f * d1 / (2.0 * d1 * d1 - f * d2);
+        if (next - x).abs() <= TOLERANCE {
+            return next.clamp(lo, hi);
         }
-        let d = dh(x);
-        let step = if d > 0.0 { x - f / d } else { f64::NAN };
-        x = if step > lo && step < hi {
-            step
+        // A step that leaves the bracket (or a NaN) bisects instead.
+        x = if next > lo && next < hi {
+            next
         } else {
             0.5 * (lo + hi)
         };
+        if hi - lo <= TOLERANCE {
+            break;
+        }
     }
-    x.clamp(lo.min(hi), hi.max(lo))
+    x
 }
 
 #[cfg(test)]
@@ -370,16 +406,51 @@ mod tests {
         }
     }
 
+    /// The sampled slope x is the u-quantile of the density (1 − x tan θ) e^{−x²} on
+    /// (−∞, cot θ): its CDF at x, by Simpson quadrature of the density (no erfc), is u to
+    /// 1e-6, for tan θ from 0 to 200 and u from 1e-6 to 1 − 1e-6; and x is monotone in u.
     #[test]
     fn visible_slope_sampler_inverts_its_cdf() {
-        for tan_t in [0.0, 0.3, 2.0, 50.0] {
+        let mass = |t: f64, a: f64, b: f64| {
+            let n = 4000;
+            let h = (b - a) / n as f64;
+            let f = |x: f64| (1.0 - x * t) * (-x * x).exp();
+            (0..=n)
+                .map(|i| {
+                    let w = if i == 0 || i == n {
+                        1.0
+                    } else if i % 2 == 1 {
+                        4.0
+                    } else {
+                        2.0
+                    };
+                    w * f(a + i as f64 * h)
+                })
+                .sum::<f64>()
+                * h
+                / 3.0
+        };
+        for tan_t in [0.0f64, 0.05, 0.3, 1.0, 2.0, 7.5, 50.0, 200.0] {
+            let top = if tan_t > 0.0 {
+                (1.0 / tan_t).min(6.0)
+            } else {
+                6.0
+            };
+            let total = mass(tan_t, -6.0, top);
             let mut prev = -f64::INFINITY;
-            for i in 0..=100 {
-                let x = sample_visible_slope_beckmann(tan_t, i as f64 / 100.0);
-                assert!(x.is_finite() && x >= prev);
-                if tan_t > 0.0 {
-                    assert!(x <= 1.0 / tan_t + 1e-12);
-                }
+            for u in [
+                1e-6, 1e-3, 0.02, 0.1, 0.25, 0.4, 0.5, 0.6, 0.77, 0.9, 0.99, 0.999_999,
+            ] {
+                let x = sample_visible_slope_beckmann(tan_t, u);
+                assert!(
+                    x.is_finite() && x > prev && x <= top,
+                    "tan {tan_t}, u {u}: {x}"
+                );
+                let cdf = mass(tan_t, -6.0, x) / total;
+                assert!(
+                    (cdf - u).abs() <= 1e-6,
+                    "tan {tan_t}, u {u}: x {x}, CDF {cdf}"
+                );
                 prev = x;
             }
         }
