@@ -709,6 +709,21 @@ mod tests {
     use glam::DVec3;
     use rand::{RngExt, SeedableRng};
 
+    /// The padding is relative: a box grows by 4 ε times its largest coordinate magnitude on
+    /// every side (a few ulps), so it still holds its points after rounding but stays tight;
+    /// an absolute or much larger pad would cost traversal time without changing any hit.
+    #[test]
+    fn padding_is_a_few_ulps_of_the_largest_coordinate() {
+        let b = padded([Vec3::new(1.0, -2.0, 3.0), Vec3::new(-1.0, 0.5, 5.0)]);
+        // max |coordinate| per axis: 1, 2, 5
+        let pad = Vec3::new(1.0, 2.0, 5.0) * (4.0 * f32::EPSILON);
+        assert_eq!(Vec3::from(b.min), Vec3::new(-1.0, -2.0, 3.0) - pad);
+        assert_eq!(Vec3::from(b.max), Vec3::new(1.0, 0.5, 5.0) + pad);
+        let far = padded([Vec3::splat(1000.0), Vec3::splat(1000.5)]);
+        assert!(far.min.x < 1000.0 && far.min.x > 1000.0 - 1e-3);
+        assert!(far.max.x > 1000.5 && far.max.x < 1000.5 + 1e-3);
+    }
+
     /// Brute force over every primitive: the closest t and whether anything is hit.
     fn brute_force(shapes: &[Shape], ray: &Ray) -> Option<f32> {
         let shear = RayShear::new(ray.o, ray.d);
