@@ -17,7 +17,9 @@
 //!
 //! - `principled` and `principledthin`, built from plain parameters: the same chi-square
 //!   tests (with their own Šidák correction), and no NaN or Inf at the edge directions.
-//!   (Their albedo may exceed 1: the Disney model does not conserve energy.)
+//!   (Their albedo may exceed 1: the Disney model does not conserve energy.) Cheaper, for the
+//!   mutation tier: their mean sample weight equals a uniform-sphere estimate of ∫ eval dω
+//!   (a z-test), which a lobe chosen with the wrong probability breaks.
 //!
 //! Every test is deterministic (fixed seeds).
 
@@ -1051,6 +1053,113 @@ fn chi2_principled_sampling_matches_pdf() {
     let cases = principled_cases();
     let refs: Vec<(&Case, ShadingBsdf)> = cases.iter().map(|(c, b)| (c, b.clone())).collect();
     check_chi2(chi2_jobs_for(&refs));
+}
+
+/// The choice among the Disney lobes in `sample()`: the mean sample weight (over the
+/// non-delta samples) and a uniform-sphere estimate of ∫ eval dω (eval carries |cos θo|) both
+/// estimate the directional albedo, independently of each other; if `sample()` picked its
+/// lobes with other probabilities than `pdf()` assumes, the first one is biased. Moderately
+/// rough lobes only (α ≥ 0.1, clearcoat gloss 0: α_cc = 0.1), so that the uniform estimate
+/// has a light tail. Two-sided z-test on the difference, α = 0.01 with the Šidák correction
+/// over every (case, direction, channel). The chi-square tests check the same more finely,
+/// but are too slow for the mutation tier.
+#[test]
+fn principled_lobe_choice_is_unbiased() {
+    use penumbra::bsdf::{Principled, PrincipledParams, PrincipledThin, PrincipledThinParams};
+    use penumbra::sampling::square_to_uniform_sphere;
+    let p = PrincipledParams::default;
+    let all = PrincipledParams {
+        base_color: Vec3::new(0.8, 0.5, 0.3),
+        roughness: 0.6,
+        metallic: 0.2,
+        spec_trans: 0.3,
+        has_spec_trans: true,
+        sheen: 0.4,
+        clearcoat: 1.0,
+        clearcoat_gloss: 0.0,
+        ..p()
+    };
+    let rates = PrincipledParams {
+        diffuse_reflectance_sampling_rate: 0.3,
+        main_specular_sampling_rate: 2.0,
+        clearcoat_sampling_rate: 0.5,
+        ..all
+    };
+    let glass = PrincipledParams {
+        spec_trans: 0.8,
+        eta: Some(1.5),
+        clearcoat: 0.5,
+        ..all
+    };
+    let thin = PrincipledThinParams {
+        roughness: 0.6,
+        spec_trans: 0.4,
+        diff_trans: 0.3,
+        sheen: 0.4,
+        ..PrincipledThinParams::default()
+    };
+    let cases = [
+        (
+            "all lobes",
+            ShadingBsdf::leaf(Bsdf::Principled(Principled::new(all))),
+        ),
+        (
+            "sampling rates",
+            ShadingBsdf::leaf(Bsdf::Principled(Principled::new(rates))),
+        ),
+        (
+            "glass",
+            ShadingBsdf::leaf(Bsdf::Principled(Principled::new(glass))),
+        ),
+        (
+            "thin",
+            ShadingBsdf::leaf(Bsdf::PrincipledThin(PrincipledThin::new(thin))),
+        ),
+    ];
+    let dirs = [dir(10.0, 10.0), dir(60.0, 200.0), dir(150.0, 40.0)];
+    let jobs: Vec<_> = cases
+        .iter()
+        .flat_map(|c| dirs.iter().map(move |&wi| (c, wi)))
+        .collect();
+    let z = normal_critical_z(sidak(0.01, jobs.len() * 3));
+    const N: usize = 400_000;
+    let failures: Vec<String> = jobs
+        .par_iter()
+        .enumerate()
+        .filter_map(|(i, ((name, b), wi))| {
+            let mut rng = SampleStream::new(0x10be, i as u64, 0);
+            let (mut s1, mut q1, mut s2, mut q2) = (
+                glam::DVec3::ZERO,
+                glam::DVec3::ZERO,
+                glam::DVec3::ZERO,
+                glam::DVec3::ZERO,
+            );
+            for _ in 0..N {
+                if let Some(bs) = b.sample(*wi, rng.next_1d(), rng.next_2d()) {
+                    if !bs.delta {
+                        let w = bs.weight.as_dvec3();
+                        s1 += w;
+                        q1 += w * w;
+                    }
+                }
+                let wo = square_to_uniform_sphere(rng.next_2d());
+                let f = b.eval(*wi, wo).as_dvec3() * (4.0 * std::f64::consts::PI);
+                s2 += f;
+                q2 += f * f;
+            }
+            let n = N as f64;
+            let (m1, m2) = (s1 / n, s2 / n);
+            let var = (q1 / n - m1 * m1) / n + (q2 / n - m2 * m2) / n;
+            let bad = (0..3).any(|k| (m1[k] - m2[k]).abs() > z * var[k].sqrt());
+            bad.then(|| {
+                format!(
+                    "{name}: wi {wi}: E[weight] {m1} vs ∫ eval {m2} (σ {})",
+                    var.map(f64::sqrt)
+                )
+            })
+        })
+        .collect();
+    assert!(failures.is_empty(), "{}", failures.join("\n"));
 }
 
 #[test]
