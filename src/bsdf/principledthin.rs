@@ -352,4 +352,51 @@ mod tests {
             }
         }
     }
+
+    /// A `<float>` spec_trans above 1 (which Mitsuba accepts) would give the diffuse lobes a
+    /// negative weight 1 − s; Mitsuba masks them off (`spec_trans < 1`), and so does
+    /// penumbra: eval stays non-negative and equals the specular lobes alone, i.e. the value
+    /// of the same material with the base colour black (it scales only the diffuse lobes and
+    /// the transmission, which is below the surface here). Its samples keep finite,
+    /// non-negative weights.
+    #[test]
+    fn spec_trans_above_one_masks_the_diffuse_lobes_off() {
+        let over = PrincipledThinParams {
+            spec_trans: 1.5,
+            sheen: 0.5,
+            ..PrincipledThinParams::default()
+        };
+        let (b, black) = (
+            PrincipledThin::new(over),
+            PrincipledThin::new(PrincipledThinParams {
+                base_color: Spectrum::ZERO,
+                spec_tint: 0.0,
+                sheen: 0.0,
+                ..over
+            }),
+        );
+        let mut s = SampleStream::new(3, 1, 4);
+        let mut lit = 0;
+        for _ in 0..2000 {
+            let wi = square_to_uniform_sphere(s.next_2d());
+            let wo = square_to_uniform_sphere(s.next_2d());
+            if wi.z * wo.z <= 0.0 {
+                continue;
+            }
+            let f = b.eval(wi, wo);
+            assert!(f.min_element() >= 0.0, "{wi} {wo}: {f}");
+            assert_eq!(f, black.eval(wi, wo), "{wi} {wo}");
+            lit += (f.max_element() > 0.0) as usize;
+        }
+        assert!(lit > 500, "{lit}");
+        for _ in 0..2000 {
+            let wi = square_to_uniform_sphere(s.next_2d());
+            if let Some(bs) = b.sample(wi, s.next_1d(), s.next_2d()) {
+                assert!(
+                    bs.weight.is_finite() && bs.weight.min_element() >= 0.0,
+                    "{bs:?}"
+                );
+            }
+        }
+    }
 }
