@@ -156,6 +156,8 @@ pub(super) fn schlick_weight(cos: f32) -> f32 {
 /// The weight w of Schlick's approximation F0 + (1 − F0) w at the signed cosine `cos_theta_i`
 /// to the microfacet normal of an interface of relative IOR `eta`: (1 − |cos θi|)^5 from the
 /// rarer side, (1 − cos θt)^5 from the denser one (1 beyond the critical angle), as Mitsuba.
+/// Index-matched (η = 1: cos θt = |cos θi|) takes the first form, which is exact; the second
+/// would compute cos θt² = 1 − (1 − cos²θi) and lose a grazing cos θi < 3.5e-4 entirely.
 #[inline]
 pub(super) fn schlick_weight_at(cos_theta_i: f32, eta: f32) -> f32 {
     let (eta_it, eta_ti) = if cos_theta_i >= 0.0 {
@@ -163,7 +165,7 @@ pub(super) fn schlick_weight_at(cos_theta_i: f32, eta: f32) -> f32 {
     } else {
         (1.0 / eta, eta)
     };
-    if eta_it > 1.0 {
+    if eta_it >= 1.0 {
         schlick_weight(cos_theta_i.abs())
     } else {
         let cos_t2 = 1.0 - (1.0 - cos_theta_i * cos_theta_i) * eta_ti * eta_ti;
@@ -563,6 +565,19 @@ impl Principled {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// Index-matched (η = 1) the weight is (1 − |cos θ|)^5 from either side, down to grazing
+    /// cosines where 1 − (1 − cos²θ) rounds to 0 in f32.
+    #[test]
+    fn schlick_weight_at_eta_one_is_exact_at_grazing_angles() {
+        for c in [0.5f32, 1e-2, 1e-4, 1e-6] {
+            let want = (1.0 - c).powi(5);
+            for ci in [c, -c] {
+                let w = schlick_weight_at(ci, 1.0);
+                assert!((w - want).abs() <= 1e-6, "cos {ci}: {w} vs {want}");
+            }
+        }
+    }
     use crate::sampler::SampleStream;
 
     /// A lobe of probability 0 is never picked, not even at u1 = 0 (which low-discrepancy
