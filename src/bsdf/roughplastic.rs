@@ -27,6 +27,7 @@ use super::{BsdfSample, Spectrum};
 use crate::math::gauss_legendre;
 use crate::sampling::{square_to_cosine_hemisphere, square_to_cosine_hemisphere_pdf};
 use glam::{Vec2, Vec3};
+use rayon::prelude::*;
 use std::f32::consts::FRAC_1_PI;
 
 /// Cosines at which the coating's transmittance is tabulated.
@@ -65,7 +66,9 @@ fn albedo_table(distribution: &Microfacet, eta: f32, lobe: Lobe) -> Vec<f32> {
         ..*distribution
     };
     let (nodes, weights) = gauss_legendre(if eta > 1.0 { 32 } else { 128 });
+    // Rows are independent (each its own μ): computed in parallel, the same values.
     (0..TABLE_SIZE)
+        .into_par_iter()
         .map(|i| {
             let mu = (i as f32 / (TABLE_SIZE - 1) as f32).max(1e-6);
             let wi = Vec3::new((1.0 - mu * mu).max(0.0).sqrt(), 0.0, mu);
