@@ -102,11 +102,14 @@ fn max_depth_zero_renders_black() {
 /// beside the front emitter (which see the wall in both cases).
 #[test]
 fn hide_emitters_passes_camera_rays_through_area_lights() {
-    // path, direct and whitted share the pass-through (integrator::pass_through_emitters)
+    // path, direct and whitted share the pass-through (integrator::pass_through_emitters);
+    // volpath and volpathmis have their own (skip_area_emitters, media aware)
     for integrator in [
         r#"type="path"><integer name="max_depth" value="2"/>"#,
         r#"type="direct">"#,
         r#"type="whitted"><integer name="max_depth" value="2"/>"#,
+        r#"type="volpath"><integer name="max_depth" value="2"/>"#,
+        r#"type="volpathmis"><integer name="max_depth" value="2"/>"#,
     ] {
         let xml = |hide: bool| {
             format!(
