@@ -23,6 +23,18 @@ fn radiosity(scene: &Scene) -> &RadiosityIntegrator {
     }
 }
 
+/// The total area of a solution's patches and its total power Σ A_i B_i (red channel).
+fn area_and_power(sol: &Solution) -> (f64, f64) {
+    let area = sol.patches.iter().map(|p| p.area).sum();
+    let power = sol
+        .patches
+        .iter()
+        .zip(&sol.radiosity)
+        .map(|(p, b)| p.area * b.x as f64)
+        .sum();
+    (area, power)
+}
+
 /// Howell's C-11: from an a × b rectangle to the directly opposed one at distance c.
 fn parallel_rectangles(a: f64, b: f64, c: f64) -> f64 {
     let (x, y) = (a / c, b / c);
@@ -264,13 +276,7 @@ fn closed_furnace_has_the_analytic_radiosity() {
         lost / m as f64
     );
     // Total power: shooting conserves it exactly, so only the residual is missing.
-    let area: f64 = sol.patches.iter().map(|p| p.area).sum();
-    let power: f64 = sol
-        .patches
-        .iter()
-        .zip(&sol.radiosity)
-        .map(|(p, b)| p.area * b.x as f64)
-        .sum();
+    let (area, power) = area_and_power(&sol);
     // The residual reached is reported: below the requested 1e-7, and not 0 (reflecting
     // patches always leave some power unshot).
     assert!(
@@ -547,13 +553,7 @@ fn a_large_closed_furnace_reaches_the_requested_residual() {
         sol.residual,
         sol.shots
     );
-    let area: f64 = sol.patches.iter().map(|p| p.area).sum();
-    let power: f64 = sol
-        .patches
-        .iter()
-        .zip(&sol.radiosity)
-        .map(|(p, b)| p.area * b.x as f64)
-        .sum();
+    let (area, power) = area_and_power(&sol);
     let exact = area * PI * 1.0 / (1.0 - 0.9);
     assert!(
         (power / exact - 1.0).abs() < 1e-3,
