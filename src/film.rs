@@ -95,14 +95,7 @@ impl Filter {
             if b <= a {
                 return 0.0;
             }
-            let n = 2000;
-            let h = (b - a) / n as f64;
-            let f = |x: f64| self.weight(x - c).powi(p);
-            let mut acc = f(a) + f(b);
-            for k in 1..n {
-                acc += f(a + k as f64 * h) * if k % 2 == 1 { 4.0 } else { 2.0 };
-            }
-            acc * h / 3.0
+            crate::math::simpson(|x| self.weight(x - c).powi(p), a, b, 2000)
         };
         simpson(a, b.min(c)) + simpson(a.max(c), b)
     }

@@ -1,6 +1,6 @@
 //! Numerical building blocks shared by the renderer and the study: the complementary error
-//! function, a first guess of the inverse error function, and Gauss–Legendre quadrature
-//! rules.
+//! function, a first guess of the inverse error function, and quadrature rules (composite
+//! Simpson, Gauss–Legendre).
 
 /// The complementary error function (Chebyshev fit, relative error < 1.2e-7 everywhere).
 pub fn erfc(x: f64) -> f64 {
@@ -20,6 +20,17 @@ pub fn erfc(x: f64) -> f64 {
     } else {
         2.0 - ans
     }
+}
+
+/// ∫ₐᵇ f by the composite Simpson rule on `n` (even) intervals: (h/3) [f(a) + f(b) +
+/// Σ 4 f(odd nodes) + Σ 2 f(even inner nodes)], summed in that order.
+pub fn simpson(f: impl Fn(f64) -> f64, a: f64, b: f64, n: usize) -> f64 {
+    let h = (b - a) / n as f64;
+    let mut acc = f(a) + f(b);
+    for k in 1..n {
+        acc += f(a + k as f64 * h) * if k % 2 == 1 { 4.0 } else { 2.0 };
+    }
+    acc * h / 3.0
 }
 
 /// A first guess of erf⁻¹(y) for Newton iterations: Giles's form (2010, "Approximating the

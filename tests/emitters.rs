@@ -8,6 +8,7 @@ use common::*;
 use glam::{Vec2, Vec3};
 use penumbra::emitter::Emitter;
 use penumbra::geometry::{Frame, Ray};
+use penumbra::math::simpson;
 use penumbra::sampler::SampleStream;
 use penumbra::scene::Scene;
 use penumbra::shape::SurfaceInteraction;
@@ -657,28 +658,12 @@ fn emitter_rays_carry_the_emitted_power() {
             ((cutoff - t) / (cutoff - beam)).max(0.0)
         }
     };
-    let n = 100_000;
-    let h = cutoff / n as f64;
-    let simpson: f64 = (0..=n)
-        .map(|k| {
-            let t = k as f64 * h;
-            let w = if k == 0 || k == n {
-                1.0
-            } else if k % 2 == 1 {
-                4.0
-            } else {
-                2.0
-            };
-            w * falloff(t) * t.sin()
-        })
-        .sum::<f64>()
-        * h
-        / 3.0;
+    let cone = simpson(|t| falloff(t) * t.sin(), 0.0, cutoff, 100_000);
     let v = |x: f64, y: f64, z: f64| [x, y, z];
     let expected = [
         v(PI * 4.0, PI * 8.0, PI * 12.0),
         v(4.0 * PI * 3.0, 4.0 * PI * 3.0, 4.0 * PI * 6.0),
-        [2.0 * PI * 2.0 * simpson; 3],
+        [2.0 * PI * 2.0 * cone; 3],
         v(PI * 3.0 * 0.5 * 4.0, PI * 3.0 * 4.0, PI * 3.0 * 1.5 * 4.0),
         [PI * r * r * 1.5; 3],
         v(

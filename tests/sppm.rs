@@ -7,6 +7,7 @@
 mod common;
 use common::*;
 use penumbra::integrator::Integrator;
+use penumbra::math::simpson;
 use penumbra::scene::Scene;
 use penumbra::study::stats::sidak;
 
@@ -27,24 +28,7 @@ fn sensor(origin: &str, target: &str, res: usize) -> String {
 /// integration of the density).
 fn t_quantile_7(alpha: f64) -> f64 {
     let dens = |t: f64| (1.0 + t * t / 7.0).powf(-4.0);
-    let integral = |a: f64, b: f64| {
-        let n = 20_000;
-        let h = (b - a) / n as f64;
-        (0..=n)
-            .map(|k| {
-                let w = if k == 0 || k == n {
-                    1.0
-                } else if k % 2 == 1 {
-                    4.0
-                } else {
-                    2.0
-                };
-                w * dens(a + k as f64 * h)
-            })
-            .sum::<f64>()
-            * h
-            / 3.0
-    };
+    let integral = |a: f64, b: f64| simpson(dens, a, b, 20_000);
     let total = 2.0 * integral(0.0, 200.0);
     let (mut lo, mut hi) = (0.0f64, 100.0f64);
     for _ in 0..60 {

@@ -159,15 +159,8 @@ pub fn refract(wi: Vec3, m: Vec3, cos_theta_t: f32, eta_ti: f32) -> Vec3 {
 /// μ², which is smooth except at the critical angle; accurate to ~1e-6.
 pub fn diffuse_fresnel_reflectance(eta: f64) -> f64 {
     // With s = μ², 2 μ dμ = ds.
-    let n = 4096;
     let f = |s: f64| fresnel_dielectric(s.sqrt() as f32, eta as f32).f as f64;
-    let h = 1.0 / n as f64;
-    let mut acc = f(0.0) + f(1.0);
-    for i in 1..n {
-        let w = if i % 2 == 1 { 4.0 } else { 2.0 };
-        acc += w * f(i as f64 * h);
-    }
-    acc * h / 3.0
+    crate::math::simpson(f, 0.0, 1.0, 4096)
 }
 
 /// Fdr(η) by the published fits Mitsuba's `plastic` uses (its `fresnel_diffuse_reflectance`):

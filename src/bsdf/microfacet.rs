@@ -291,14 +291,12 @@ fn sample_visible_slope_beckmann(tan_theta: f64, u: f64) -> f64 {
         6.0
     };
     // H's two parts, with e = e^{−x²}; at x = ±6 from constants (erfc(6) and e^{−36}).
-    static ERFC_6: LazyLock<f64> = LazyLock::new(|| erfc(6.0));
+    static AT_6: LazyLock<(f64, f64)> = LazyLock::new(|| (erfc(6.0), (-36.0f64).exp()));
+    let (erfc_6, e_36) = *AT_6;
     let gauss = |x: f64| 0.5 * SQRT_PI * erfc(-x);
-    let h_lo = 0.5 * SQRT_PI * *ERFC_6 + 0.5 * tan_theta * (-36.0f64).exp();
+    let h_lo = 0.5 * SQRT_PI * erfc_6 + 0.5 * tan_theta * e_36;
     let (gauss_hi, tilt_hi) = if hi == 6.0 {
-        (
-            0.5 * SQRT_PI * (2.0 - *ERFC_6),
-            0.5 * tan_theta * (-36.0f64).exp(),
-        )
+        (0.5 * SQRT_PI * (2.0 - erfc_6), 0.5 * tan_theta * e_36)
     } else {
         (gauss(hi), 0.5 * tan_theta * (-hi * hi).exp())
     };
@@ -412,23 +410,7 @@ mod tests {
     #[test]
     fn visible_slope_sampler_inverts_its_cdf() {
         let mass = |t: f64, a: f64, b: f64| {
-            let n = 4000;
-            let h = (b - a) / n as f64;
-            let f = |x: f64| (1.0 - x * t) * (-x * x).exp();
-            (0..=n)
-                .map(|i| {
-                    let w = if i == 0 || i == n {
-                        1.0
-                    } else if i % 2 == 1 {
-                        4.0
-                    } else {
-                        2.0
-                    };
-                    w * f(a + i as f64 * h)
-                })
-                .sum::<f64>()
-                * h
-                / 3.0
+            crate::math::simpson(|x| (1.0 - x * t) * (-x * x).exp(), a, b, 4000)
         };
         for tan_t in [0.0f64, 0.05, 0.3, 1.0, 2.0, 7.5, 50.0, 200.0] {
             let top = if tan_t > 0.0 {
