@@ -565,6 +565,7 @@ impl Principled {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::sampler::SampleStream;
 
     /// Index-matched (η = 1) the weight is (1 − |cos θ|)^5 from either side, down to grazing
     /// cosines where 1 − (1 − cos²θ) rounds to 0 in f32.
@@ -578,7 +579,6 @@ mod tests {
             }
         }
     }
-    use crate::sampler::SampleStream;
 
     /// A lobe of probability 0 is never picked, not even at u1 = 0 (which low-discrepancy
     /// samplers draw exactly): a fully metallic principled has no diffuse lobe, so u1 = 0
