@@ -1,0 +1,103 @@
+"""Tests of summarize.py on small cargo-mutants outcome files written here (run by .ci/run:
+`python -m pytest tests/mutants`)."""
+
+import json
+import sys
+from pathlib import Path
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+import summarize  # noqa: E402
+
+
+def mutant(name, summary):
+    file = name.split(":")[0]
+    return {"scenario": {"Mutant": {"name": name, "file": file}}, "summary": summary}
+
+
+def run_dir(tmp_path, label, outcomes):
+    d = tmp_path / label / "mutants.out"
+    d.mkdir(parents=True)
+    baseline = {"scenario": "Baseline", "summary": "Success"}
+    (d / "outcomes.json").write_text(json.dumps({"outcomes": [baseline] + outcomes}))
+    return tmp_path / label
+
+
+A = "src/bsdf/diffuse.rs:24:5: replace Diffuse::pdf -> f32 with 0.0"
+B = "src/accel.rs:99:50: replace * with + in padded"
+C = "src/integrator/path.rs:87:30: replace / with * in PathIntegrator::li"
+D = "src/film.rs:65:9: replace + with - in Filter::eval"
+
+
+def test_rows_group_by_directory_under_src():
+    assert summarize.group("src/bsdf/diffuse.rs") == "src/bsdf/"
+    assert summarize.group("src/bsdf/nested/x.rs") == "src/bsdf/"
+    assert summarize.group("src/accel.rs") == "src/accel.rs"
+
+
+def test_wilson_bounds_solve_the_score_equation():
+    # The Wilson bounds are the two p with (k/n - p)^2 = z^2 p (1 - p) / n.
+    z = 1.959964
+    for k, n in [(44, 52), (143, 172), (0, 10), (10, 10)]:
+        lo, hi = summarize.wilson(k, n)
+        assert lo < hi
+        for p in (lo, hi):
+            assert abs((k / n - p) ** 2 - z * z * p * (1 - p) / n) < 1e-12
+    # The interval of 143/172 quoted in tests/mutants.md.
+    lo, hi = summarize.wilson(143, 172)
+    assert (round(100 * lo), round(100 * hi)) == (77, 88)
+
+
+def test_runs_pool_and_a_rerun_overrides(tmp_path, capsys):
+    first = run_dir(tmp_path, "a", [mutant(A, "MissedMutant"), mutant(B, "CaughtMutant")])
+    second = run_dir(
+        tmp_path, "b", [mutant(A, "CaughtMutant"), mutant(C, "Timeout"), mutant(D, "Unviable")]
+    )
+    eq = tmp_path / "eq.txt"
+    eq.write_text("# none\n")
+    assert summarize.main([str(first), str(second), "--equivalent", str(eq), "--strict"]) == 0
+    out = capsys.readouterr().out
+    assert "| src/bsdf/ | 1 | 0 | 0 | 0 |" in out
+    assert "| src/integrator/ | 0 | 0 | 1 | 0 |" in out
+    assert "| src/film.rs | 0 | 0 | 0 | 1 |" in out
+    assert "| **all** | **2** | **0** | **1** | **1** |" in out
+    assert "Score 3/3 = 100.0%" in out
+
+
+def test_strict_fails_until_every_miss_is_listed(tmp_path, capsys):
+    run = run_dir(tmp_path, "a", [mutant(A, "MissedMutant"), mutant(B, "CaughtMutant")])
+    eq = tmp_path / "eq.txt"
+    eq.write_text("")
+    assert summarize.main([str(run), "--equivalent", str(eq), "--strict"]) == 1
+    assert summarize.main([str(run), "--equivalent", str(eq)]) == 0
+    eq.write_text(f"# reason in mutants.md\n{A}\n")
+    assert summarize.main([str(run), "--equivalent", str(eq), "--strict"]) == 0
+    out = capsys.readouterr().out
+    assert "Score 1/2 = 50.0%" in out
+    assert f"- {A} (equivalent, listed)" in out
+    assert "Without the 1 listed as equivalent: 1/1 = 100.0%." in out
+
+
+def test_listing_finds_stale_entries_and_untested_mutants(tmp_path, capsys):
+    run = run_dir(tmp_path, "a", [mutant(B, "CaughtMutant")])
+    eq = tmp_path / "eq.txt"
+    listing = tmp_path / "list.txt"
+    listing.write_text(f"{B}\n{C}\n")
+    eq.write_text(f"{D}\n")  # not in the listing: stale
+    args = [str(run), "--equivalent", str(eq), "--listing", str(listing), "--strict"]
+    assert summarize.main(args) == 1
+    assert "Stale equivalence entry (not in the listing): " + D in capsys.readouterr().out
+    eq.write_text(f"{C}\n")
+    assert summarize.main(args) == 0
+    assert "1 of the 2 listed mutants have an outcome." in capsys.readouterr().out
+    assert summarize.main(args + ["--complete"]) == 1
+    assert f"No outcome: {C}" in capsys.readouterr().out
+
+
+def test_the_repository_list_names_only_mutants_of_the_estimator_core():
+    entries = summarize.read_list(summarize.EQUIVALENT)
+    assert len(entries) >= 11
+    for e in entries:
+        file, line, column, description = e.split(":", 3)
+        assert file.startswith("src/") and file.endswith(".rs"), e
+        assert (Path(__file__).resolve().parents[2] / file).exists(), e
+        assert int(line) > 0 and int(column) > 0 and description.startswith(" "), e
