@@ -1422,3 +1422,52 @@ fn importance_mode_weight_matches_eval_and_reciprocity() {
         rad.weight
     );
 }
+
+/// Importance mode (light paths: `ptracer`, SPPM's photons) scales refraction by η² or 1/η².
+/// At an extreme relative IOR that factor overflows f32 (η = 1e20: η² = ∞; η = 1e-20: 1/η² =
+/// ∞), and ∞ times a zero transmission is NaN. Every value must stay finite and ≥ 0, as in
+/// radiance mode (`no_nan_or_inf_anywhere`): for the refracting BSDFs, and for a principled
+/// BSDF without transmission (spec_trans 0), whose scale must not enter at all.
+#[test]
+fn importance_mode_is_finite_at_extreme_iors() {
+    let dirs = edge_directions();
+    let mut rng = SampleStream::new(0x10e20, 0, 0);
+    let mut checked = 0usize;
+    for ior in ["1e20", "1e-20"] {
+        let cases = [
+            format!(r#"<bsdf type="dielectric"><float name="int_ior" value="{ior}"/></bsdf>"#),
+            format!(
+                r#"<bsdf type="roughdielectric"><float name="int_ior" value="{ior}"/><float name="alpha" value="0.3"/></bsdf>"#
+            ),
+            format!(
+                r#"<bsdf type="principled"><float name="spec_trans" value="0.5"/><float name="eta" value="{ior}"/></bsdf>"#
+            ),
+            format!(
+                r#"<bsdf type="principled"><float name="spec_trans" value="0"/><float name="eta" value="{ior}"/></bsdf>"#
+            ),
+        ];
+        for xml in &cases {
+            let b = bsdf_from_xml(xml).importance();
+            for &wi in &dirs {
+                for &wo in &dirs {
+                    let f = b.eval(wi, wo);
+                    assert!(
+                        f.is_finite() && f.min_element() >= 0.0,
+                        "{xml}: importance eval {f} at wi {wi:?} wo {wo:?}"
+                    );
+                    checked += 1;
+                }
+                for _ in 0..16 {
+                    let (u1, u2) = (rng.next_1d(), rng.next_2d());
+                    if let Some(bs) = b.sample(wi, u1, u2) {
+                        assert!(
+                            bs.weight.is_finite() && bs.weight.min_element() >= 0.0,
+                            "{xml}: importance sample {bs:?} at wi {wi:?}"
+                        );
+                    }
+                }
+            }
+        }
+    }
+    assert_eq!(checked, 8 * dirs.len() * dirs.len());
+}

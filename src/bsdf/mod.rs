@@ -101,6 +101,8 @@ impl Bsdf {
     /// η (η_it = η seen from the outside, 1/η from the inside), since radiance-mode
     /// refraction carries the 1/η_it² of radiance's solid-angle compression (Veach 1997,
     /// §5.2) and importance does not; 1 for reflection and for BSDFs that do not refract.
+    /// Capped at `f32::MAX`: at an extreme IOR (η = 1e20, or 1e-20) η² or 1/η² overflows, and
+    /// ∞ times a zero transmission would be NaN.
     pub fn importance_scale(&self, wi: Vec3, wo: Vec3) -> f32 {
         let eta = match self {
             Bsdf::Dielectric(b) => b.eta,
@@ -111,9 +113,9 @@ impl Bsdf {
         if wi.z * wo.z >= 0.0 {
             1.0
         } else if wi.z > 0.0 {
-            eta * eta
+            (eta * eta).min(f32::MAX)
         } else {
-            1.0 / (eta * eta)
+            (1.0 / (eta * eta)).min(f32::MAX)
         }
     }
 
