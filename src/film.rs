@@ -501,6 +501,96 @@ mod tests {
         assert_eq!(pass.iter().filter(|p| p[0] > 0.0).count(), 9);
     }
 
+    /// Samples scattered over an 8 × 6 image and added tile by tile (3 × 2 tiles, each
+    /// enlarged by the filter's border) give every pixel the weight Σ w(dx) w(dy) over the
+    /// samples within the filter's radius on both axes: the sum written out from the filter's
+    /// definition, one pixel at a time. A tile that drops a row or column of its border, or
+    /// a weight outside the radius, shows here.
+    #[test]
+    fn tiles_give_each_pixel_every_filter_weight_within_the_radius() {
+        let (w, h) = (8usize, 6usize);
+        let mut rng = crate::sampler::SampleStream::new(0xf11, 0, 0);
+        let points: Vec<Vec2> = (0..600)
+            .map(|_| rng.next_2d() * Vec2::new(w as f32, h as f32))
+            .collect();
+        for filter in [
+            Filter::Gaussian { stddev: 0.5 },
+            Filter::Tent { radius: 1.0 },
+            Filter::Tent { radius: 1.7 },
+        ] {
+            let mut film = Film::new(w, h, filter);
+            for ty in (0..h).step_by(2) {
+                for tx in (0..w).step_by(3) {
+                    let (tw, th) = (3.min(w - tx), 2.min(h - ty));
+                    let mut tile = FilmTile::new(tx, ty, tw, th, filter);
+                    for p in &points {
+                        let (px, py) = (p.x as usize, p.y as usize);
+                        if (tx..tx + tw).contains(&px) && (ty..ty + th).contains(&py) {
+                            tile.add_sample(*p, Vec3::new(1.0, 2.0, 3.0));
+                        }
+                    }
+                    film.merge(&tile);
+                }
+            }
+            assert_eq!(film.samples, points.len() as u64);
+            let r = filter.radius();
+            let weight_1d = |d: f64| if d.abs() < r { filter.eval(d) } else { 0.0 };
+            for y in 0..h {
+                for x in 0..w {
+                    let expected: f64 = points
+                        .iter()
+                        .map(|p| {
+                            weight_1d(x as f64 + 0.5 - p.x as f64)
+                                * weight_1d(y as f64 + 0.5 - p.y as f64)
+                        })
+                        .sum();
+                    let i = x + y * w;
+                    assert!(expected > 0.0);
+                    assert!(
+                        (film.weight[i] - expected).abs() <= 1e-12 * expected,
+                        "{filter:?} pixel ({x}, {y}): weight {} expected {expected}",
+                        film.weight[i]
+                    );
+                    assert!((film.sum[i][2] - 3.0 * expected).abs() <= 1e-12 * expected);
+                }
+            }
+        }
+    }
+
+    /// `Film::add` (a render continued where another stopped) sums the sample counts and
+    /// every per-pixel sum.
+    #[test]
+    fn adding_films_sums_their_samples_and_sums() {
+        let filter = Filter::Tent { radius: 1.0 };
+        let film_of = |points: &[(f32, f32, f32)]| {
+            let mut tile = FilmTile::new(0, 0, 2, 2, filter);
+            for &(x, y, v) in points {
+                tile.add_sample(Vec2::new(x, y), Vec3::splat(v));
+            }
+            let mut film = Film::new(2, 2, filter);
+            film.merge(&tile);
+            film
+        };
+        let a = [(0.5, 0.5, 1.0), (1.2, 0.7, 2.0), (1.9, 1.9, 4.0)];
+        let b = [(0.1, 1.5, 8.0), (1.5, 1.5, 16.0)];
+        let mut sum = film_of(&a);
+        sum.add(&film_of(&b));
+        let all = film_of(&[a.as_slice(), b.as_slice()].concat());
+        assert_eq!(sum.samples, 5);
+        assert_eq!(sum.spp(), 5.0 / 4.0);
+        for i in 0..4 {
+            assert!((sum.weight[i] - all.weight[i]).abs() < 1e-12);
+            assert!((sum.weight_sq[i] - all.weight_sq[i]).abs() < 1e-12);
+            assert!((sum.weight_cube[i] - all.weight_cube[i]).abs() < 1e-12);
+            for c in 0..3 {
+                assert!((sum.sum[i][c] - all.sum[i][c]).abs() < 1e-9);
+                assert!((sum.sum_sq[i][c] - all.sum_sq[i][c]).abs() < 1e-9);
+                assert!((sum.sum_w2[i][c] - all.sum_w2[i][c]).abs() < 1e-9);
+                assert!((sum.sum_sq_w2[i][c] - all.sum_sq_w2[i][c]).abs() < 1e-9);
+            }
+        }
+    }
+
     #[test]
     fn constant_sum_of_many_samples_is_exact() {
         // 2^20 samples of one f32 value: the f64 mean returns the value bit for bit.
