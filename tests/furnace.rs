@@ -102,8 +102,9 @@ fn max_depth_zero_renders_black() {
 /// beside the front emitter (which see the wall in both cases).
 #[test]
 fn hide_emitters_passes_camera_rays_through_area_lights() {
-    // path, direct and whitted share the pass-through (integrator::pass_through_emitters);
-    // volpath and volpathmis have their own (skip_area_emitters, media aware)
+    // direct and whitted share the pass-through (integrator::pass_through_emitters); path
+    // passes through in its own loop; volpath and volpathmis have their own
+    // (skip_area_emitters, media aware)
     for integrator in [
         r#"type="path"><integer name="max_depth" value="2"/>"#,
         r#"type="direct">"#,
@@ -167,6 +168,60 @@ fn hide_emitters_passes_camera_rays_through_area_lights() {
         // Pixels that do not see the front emitter trace the same paths either way.
         assert_eq!(shown[0], hidden[0]);
         assert_eq!(shown[8 * 9 + 8], hidden[8 * 9 + 8]);
+    }
+}
+
+/// In `direct` and `whitted`, a hidden camera ray passes through at most 256 stacked area
+/// lights (the documented limit of `integrator::pass_through_emitters`, which keeps a
+/// pathological stack from costing unbounded rays): behind 200 of them it still reaches the
+/// lit wall, behind 300 the pixel is black. The lights are small, black (reflectance 0)
+/// squares 1e-3 apart in front of the wall; the wall is lit by a large emitter behind the
+/// camera. (`path` passes through any number: its own loop, without a limit.)
+#[test]
+fn hide_emitters_gives_up_after_256_stacked_lights() {
+    for integrator in [
+        r#"type="direct">"#,
+        r#"type="whitted"><integer name="max_depth" value="2"/>"#,
+    ] {
+        let stack = |count: usize| {
+            let mut lights = String::new();
+            for k in 0..count {
+                lights += &format!(
+                    r#"<shape type="rectangle"><transform name="to_world"><scale value="0.2"/><translate z="{}"/></transform>
+        <bsdf type="diffuse"><float name="reflectance" value="0"/></bsdf>
+        <emitter type="area"><rgb name="radiance" value="5"/></emitter></shape>
+"#,
+                    1.0 + 1e-3 * k as f64
+                );
+            }
+            let xml = format!(
+                r#"<scene version="3.0.0">
+    <integrator {integrator}<boolean name="hide_emitters" value="true"/></integrator>
+    <sensor type="perspective"><float name="fov" value="20"/>
+        <transform name="to_world"><lookat origin="0,0,5" target="0,0,0" up="0,1,0"/></transform>
+        <film type="hdrfilm"><integer name="width" value="9"/><integer name="height" value="9"/><rfilter type="box"/></film></sensor>
+    {lights}
+    <shape type="rectangle"><transform name="to_world"><scale value="100"/></transform>
+        <bsdf type="diffuse"><float name="reflectance" value="0.5"/></bsdf></shape>
+    <shape type="rectangle"><transform name="to_world"><scale value="100"/><rotate x="1" angle="180"/><translate z="6"/></transform>
+        <emitter type="area"><rgb name="radiance" value="1"/></emitter></shape>
+</scene>"#
+            );
+            render_scene(&scene_from_str(&xml), 16, 1, None)
+                .film
+                .image()[4 * 9 + 4]
+        };
+        // Behind the stack the wall is lit (direct light ~0.44, see the test above): a sample
+        // that reaches it is 0 only if none of its rays towards the lights reaches the big one
+        // (a cosine-distributed ray misses it or meets the stack with probability ~0.13), so
+        // all 16 samples of the pixel are 0 with probability below 1e-14. Giving up is 0
+        // exactly.
+        let through = stack(200);
+        assert!(
+            through.iter().all(|&v| v > 0.0),
+            "{integrator} 200 lights: {through:?}"
+        );
+        assert_eq!(stack(300), [0.0; 3], "{integrator} 300 lights");
     }
 }
 
