@@ -376,3 +376,23 @@ fn unsupported_scenes_are_refused_in_one_line() {
     s.use_integrator("ptracer").expect("ptracer");
     assert!(matches!(s.integrator, Integrator::ParticleTracer(_)));
 }
+
+/// A connection whose value is zero is not worth a shadow ray: with a black environment (the
+/// only emitter, nothing else in the scene) the light tracer renders black without tracing a
+/// single ray, and splats no NaN.
+#[test]
+fn a_black_environment_traces_no_rays() {
+    let xml = format!(
+        r#"<scene version="3.0.0">
+            <integrator type="ptracer"/>
+            {}
+            <emitter type="constant"><rgb name="radiance" value="0"/></emitter>
+        </scene>"#,
+        sensor("0, 0, 2", "0, 0, 0", "0, 1, 0", 60.0, 4)
+    );
+    let out = render_scene(&scene_from_str(&xml), 16, SEED, None);
+    assert_eq!(out.stats.paths, 4 * 4 * 16);
+    assert_eq!(out.stats.path.rays, 0);
+    assert_eq!(out.stats.nonfinite, 0);
+    assert!(out.film.image().iter().all(|p| *p == [0.0; 3]));
+}
