@@ -291,6 +291,45 @@ fn shadow_rays_carry_the_slab_transmittance() {
     z.finish(cases.len() * INTEGRATORS.len() * 3);
 }
 
+/// A shadow ray ends at the light. Where shadow rays must see through null surfaces (here a
+/// null cube off to the side turns that on), they are traced segment by segment up to the
+/// light's distance; one that ran on past a point light would be blocked by the ceiling
+/// above it. A white plane lit by a point light of intensity I at height h = 1, seen
+/// through an orthographic camera whose rays start below the ceiling (near clip), direct
+/// light only: the image mean over the visible square [−a, a]² is ρ I Ω / (π (2a)²), with Ω
+/// = 4 atan(a² / (h √(h² + 2a²))) the solid angle of the square seen from the light
+/// (∫ h / r³ dA over the square).
+#[test]
+fn shadow_rays_through_null_surfaces_end_at_the_light() {
+    let (a, h, intensity) = (0.8f64, 1.0f64, 5.0f64);
+    let omega = 4.0 * (a * a / (h * (h * h + 2.0 * a * a).sqrt())).atan();
+    let expected = intensity * omega / (std::f64::consts::PI * 4.0 * a * a);
+    let mut z = ZTests::new(INTEGRATORS.len() * 3);
+    for integrator in INTEGRATORS {
+        let body = format!(
+            r#"<emitter type="point"><point name="position" x="0" y="0" z="{h}"/>
+                   <rgb name="intensity" value="{intensity}"/></emitter>
+               <shape type="cube"><transform name="to_world"><scale value="0.1"/><translate value="2.5, 2.5, 0.5"/></transform>
+                   <bsdf type="null"/></shape>
+               <shape type="rectangle">
+                   <transform name="to_world"><scale value="3"/></transform>
+                   <bsdf type="diffuse"><rgb name="reflectance" value="1"/></bsdf>
+               </shape>
+               <shape type="rectangle">
+                   <transform name="to_world"><scale value="3"/><rotate x="1" angle="180"/><translate value="0, 0, 2"/></transform>
+                   <bsdf type="diffuse"><rgb name="reflectance" value="0"/></bsdf>
+               </shape>"#
+        );
+        // The camera at z = 5 with its rays starting 3.5 below it, under the ceiling at z = 2.
+        let xml = scene_xml(integrator, 2, "", &body).replace(
+            r#"<float name="near_clip" value="0.0001"/>"#,
+            r#"<float name="near_clip" value="3.5"/>"#,
+        );
+        z.check(integrator, render_mean(&xml, 64), [expected; 3]);
+    }
+    z.finish(INTEGRATORS.len() * 3);
+}
+
 /// A camera inside an unbounded absorbing medium (the sensor's medium) sees an emitter 1
 /// unit away through it: exp(−σt).
 #[test]
