@@ -165,6 +165,48 @@ mod tests {
         assert_eq!(g.bbox, [Vec3::ZERO, Vec3::ONE]);
     }
 
+    /// A 2×2×2 grid holding v = 1 + 2i + 4j + 8k at texel (i, j, k) (x fastest in the data),
+    /// a different value at each texel. Trilinear interpolation reproduces a function linear
+    /// in the texel coordinates exactly: inside the texel centres v(q) = 1 + 2p_x + 4p_y +
+    /// 8p_z with p = 2q − ½; the nearest lookup returns the texel of ⌊2q⌋. Every axis and the
+    /// data layout enter.
+    #[test]
+    fn lookups_interpolate_and_pick_along_every_axis() {
+        let data: Vec<f32> = (0..8)
+            .map(|n| {
+                let (i, j, k) = (n % 2, (n / 2) % 2, n / 4);
+                (1 + 2 * i + 4 * j + 8 * k) as f32
+            })
+            .collect();
+        let vol = |trilinear| {
+            let v = VolData {
+                res: [2, 2, 2],
+                channels: 1,
+                bbox: [[0.0; 3], [1.0; 3]],
+                data: data.clone(),
+            };
+            GridVolume::new(v, Mat4::IDENTITY, false, trilinear, Wrap::Clamp).unwrap()
+        };
+        let (tri, nearest) = (vol(true), vol(false));
+        for q in [
+            Vec3::new(0.3, 0.6, 0.45),
+            Vec3::new(0.7, 0.26, 0.74),
+            Vec3::new(0.5, 0.5, 0.5),
+            Vec3::new(0.25, 0.75, 0.6),
+        ] {
+            let p = q * 2.0 - 0.5;
+            let want = 1.0 + 2.0 * p.x + 4.0 * p.y + 8.0 * p.z;
+            let got = tri.eval(q).x;
+            assert!(
+                (got - want).abs() < 1e-5,
+                "trilinear at {q}: {got} vs {want}"
+            );
+            let cell = (q * 2.0).floor();
+            let want = 1.0 + 2.0 * cell.x + 4.0 * cell.y + 8.0 * cell.z;
+            assert_eq!(nearest.eval(q).x, want, "nearest at {q}");
+        }
+    }
+
     #[test]
     fn nearest_lookup_picks_the_cell() {
         let g = two_texels(Mat4::IDENTITY, false, false);
