@@ -114,7 +114,7 @@ def summarize(outcomes, equivalent, listing=None, complete=False):
             f"(timeouts as caught; 95% interval {100 * lo:.0f}–{100 * hi:.0f}%)."
         )
         non_equivalent = viable - (len(missed) - len(open_misses))
-        if non_equivalent:
+        if non_equivalent and non_equivalent < viable:
             out.append(
                 f"Without the {len(missed) - len(open_misses)} listed as equivalent: "
                 f"{caught}/{non_equivalent} = {100 * caught / non_equivalent:.1f}%."

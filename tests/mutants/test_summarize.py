@@ -61,6 +61,7 @@ def test_runs_pool_and_a_rerun_overrides(tmp_path, capsys):
     assert "| src/film.rs | 0 | 0 | 0 | 1 |" in out
     assert "| **all** | **2** | **0** | **1** | **1** |" in out
     assert "Score 3/3 = 100.0%" in out
+    assert "listed as equivalent" not in out
 
 
 def test_strict_fails_until_every_miss_is_listed(tmp_path, capsys):
