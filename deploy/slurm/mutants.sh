@@ -17,9 +17,10 @@
 # account, --cpus-per-task, default 2); MUTANTS_ARGS: extra cargo-mutants options.
 set -euo pipefail
 if [ $# -lt 2 ]; then
-    sed -n '2,19p' "$0" >&2
+    sed -n '2,17p' "$0" >&2
     exit 2
 fi
+case $1 in '' | *[!0-9]* | 0) echo "error: SHARDS must be a positive integer, not '$1'" >&2; exit 2 ;; esac
 here=$(cd "$(dirname "$0")" && pwd)
 REPO=$(cd "$here/../.." && pwd)
 SHARDS=$1
