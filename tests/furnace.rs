@@ -93,6 +93,36 @@ fn max_depth_zero_renders_black() {
     assert!(out.film.image().iter().all(|p| *p == [0.0; 3]));
 }
 
+/// The scene of the `hide_emitters` tests, seen by a 9 × 9 camera at z = 5 looking down:
+/// `lights` small black (reflectance 0) emitting squares (half-size 0.2, Le = 5, facing the
+/// camera) stacked 1e-3 apart from z = 1, in front of a diffuse wall (ρ = 0.5, z = 0) lit
+/// only by a large emitter behind the camera (Le = 1, z = 6, facing the wall).
+fn hidden_lights_scene(integrator: &str, hide: bool, lights: usize) -> String {
+    let mut stack = String::new();
+    for k in 0..lights {
+        stack += &format!(
+            r#"<shape type="rectangle"><transform name="to_world"><scale value="0.2"/><translate z="{}"/></transform>
+        <bsdf type="diffuse"><float name="reflectance" value="0"/></bsdf>
+        <emitter type="area"><rgb name="radiance" value="5"/></emitter></shape>
+"#,
+            1.0 + 1e-3 * k as f64
+        );
+    }
+    format!(
+        r#"<scene version="3.0.0">
+    <integrator {integrator}<boolean name="hide_emitters" value="{hide}"/></integrator>
+    <sensor type="perspective"><float name="fov" value="20"/>
+        <transform name="to_world"><lookat origin="0,0,5" target="0,0,0" up="0,1,0"/></transform>
+        <film type="hdrfilm"><integer name="width" value="9"/><integer name="height" value="9"/><rfilter type="box"/></film></sensor>
+    {stack}
+    <shape type="rectangle"><transform name="to_world"><scale value="100"/></transform>
+        <bsdf type="diffuse"><float name="reflectance" value="0.5"/></bsdf></shape>
+    <shape type="rectangle"><transform name="to_world"><scale value="100"/><rotate x="1" angle="180"/><translate z="6"/></transform>
+        <emitter type="area"><rgb name="radiance" value="1"/></emitter></shape>
+</scene>"#
+    )
+}
+
 /// `hide_emitters` (Mitsuba 3.9.1 semantics): camera rays pass through directly visible area
 /// emitters without using up a bounce. A camera looks at an emitting rectangle (Le = 5, facing
 /// the camera) in front of a diffuse wall lit only by a second, large emitter behind the
@@ -112,23 +142,7 @@ fn hide_emitters_passes_camera_rays_through_area_lights() {
         r#"type="volpath"><integer name="max_depth" value="2"/>"#,
         r#"type="volpathmis"><integer name="max_depth" value="2"/>"#,
     ] {
-        let xml = |hide: bool| {
-            format!(
-                r#"<scene version="3.0.0">
-    <integrator {integrator}<boolean name="hide_emitters" value="{hide}"/></integrator>
-    <sensor type="perspective"><float name="fov" value="20"/>
-        <transform name="to_world"><lookat origin="0,0,5" target="0,0,0" up="0,1,0"/></transform>
-        <film type="hdrfilm"><integer name="width" value="9"/><integer name="height" value="9"/><rfilter type="box"/></film></sensor>
-    <shape type="rectangle"><transform name="to_world"><scale value="0.2"/><translate z="1"/></transform>
-        <bsdf type="diffuse"><float name="reflectance" value="0"/></bsdf>
-        <emitter type="area"><rgb name="radiance" value="5"/></emitter></shape>
-    <shape type="rectangle"><transform name="to_world"><scale value="100"/></transform>
-        <bsdf type="diffuse"><float name="reflectance" value="0.5"/></bsdf></shape>
-    <shape type="rectangle"><transform name="to_world"><scale value="100"/><rotate x="1" angle="180"/><translate z="6"/></transform>
-        <emitter type="area"><rgb name="radiance" value="1"/></emitter></shape>
-</scene>"#
-            )
-        };
+        let xml = |hide: bool| hidden_lights_scene(integrator, hide, 1);
         // 4096 spp: a standard error of ~0.5% of the centre pixel, so a 3% error is ~6 se
         let spp = 4096;
         let shown = render_scene(&scene_from_str(&xml(false)), spp, 1, None)
@@ -184,29 +198,7 @@ fn hide_emitters_gives_up_after_256_stacked_lights() {
         r#"type="whitted"><integer name="max_depth" value="2"/>"#,
     ] {
         let stack = |count: usize| {
-            let mut lights = String::new();
-            for k in 0..count {
-                lights += &format!(
-                    r#"<shape type="rectangle"><transform name="to_world"><scale value="0.2"/><translate z="{}"/></transform>
-        <bsdf type="diffuse"><float name="reflectance" value="0"/></bsdf>
-        <emitter type="area"><rgb name="radiance" value="5"/></emitter></shape>
-"#,
-                    1.0 + 1e-3 * k as f64
-                );
-            }
-            let xml = format!(
-                r#"<scene version="3.0.0">
-    <integrator {integrator}<boolean name="hide_emitters" value="true"/></integrator>
-    <sensor type="perspective"><float name="fov" value="20"/>
-        <transform name="to_world"><lookat origin="0,0,5" target="0,0,0" up="0,1,0"/></transform>
-        <film type="hdrfilm"><integer name="width" value="9"/><integer name="height" value="9"/><rfilter type="box"/></film></sensor>
-    {lights}
-    <shape type="rectangle"><transform name="to_world"><scale value="100"/></transform>
-        <bsdf type="diffuse"><float name="reflectance" value="0.5"/></bsdf></shape>
-    <shape type="rectangle"><transform name="to_world"><scale value="100"/><rotate x="1" angle="180"/><translate z="6"/></transform>
-        <emitter type="area"><rgb name="radiance" value="1"/></emitter></shape>
-</scene>"#
-            );
+            let xml = hidden_lights_scene(integrator, true, count);
             render_scene(&scene_from_str(&xml), 16, 1, None)
                 .film
                 .image()[4 * 9 + 4]
