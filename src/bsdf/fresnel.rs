@@ -244,6 +244,27 @@ mod tests {
     }
 
     #[test]
+    fn conductor_reflectance_is_even_in_k() {
+        // The sign of the extinction coefficient is a convention (e^{iωt} or e^{−iωt}): n + ik
+        // and n − ik are complex conjugates, every amplitude conjugates with them, and the
+        // reflectance |r|² is the same. With k < 0, n² − sin²θ has a negative imaginary part,
+        // which is where the principal square root's sign matters (shard 6's mutant returned
+        // the conjugate root there).
+        for (e, k) in [(0.2, 3.9), (1.5, 0.7), (0.05, 0.3), (2.5, 4.0)] {
+            for c in [0.0, 0.2, 0.5, 0.8, 1.0] {
+                let pos = fresnel_conductor_1(c, e, k);
+                let neg = fresnel_conductor_1(c, e, -k);
+                assert!(
+                    (pos - neg).abs() < 1e-12,
+                    "η {e}, k {k}, cos {c}: {pos} vs {neg}"
+                );
+            }
+            let want = ((e - 1.0).powi(2) + k * k) / ((e + 1.0).powi(2) + k * k);
+            let got = fresnel_conductor_1(1.0, e, -k);
+            assert!((got - want).abs() < 1e-12, "η {e}, k −{k}: {got} vs {want}");
+        }
+    }
+    #[test]
     fn diffuse_fresnel_reflectance_relation() {
         // Energy balance across a smooth interface: η² (1 − Fdr(1/η)) = 1 − Fdr(η).
         let eta = 1.49;
