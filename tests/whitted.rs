@@ -169,21 +169,25 @@ fn direct_counts_rays_and_bounces() {
     assert_eq!((stats.rays, stats.bounces), (3, 1));
 }
 
-/// The same counters for the path tracer, under a ceiling that catches every bounce off the
-/// plane (a 2 km square 6 m up: an upward ray misses it only within 6e-3 rad of the horizon,
-/// probability 4e-5 for a cosine-weighted bounce): at max_depth 3 a camera path hits the plane and the ceiling (two bounces) and
-/// traces five rays: the camera ray, a shadow ray and a continuation from each of the two
-/// surfaces (the second continuation reaches the plane at the last depth and stops there).
+/// The same counters for the path tracers (path, volpath, volpathmis), under a ceiling
+/// that catches every bounce off the plane (a 2 km square 6 m up: an upward ray misses it
+/// only within 6e-3 rad of the horizon, probability 4e-5 for a cosine-weighted bounce): at
+/// max_depth 3 a camera path hits the plane and the ceiling (two bounces) and traces five
+/// rays: the camera ray, a shadow ray and a continuation from each of the two surfaces (the
+/// second continuation reaches the plane at the last depth and stops there).
 #[test]
 fn path_counts_rays_and_bounces() {
     let ceiling = r#"<shape type="rectangle">
             <transform name="to_world"><scale value="1000"/><rotate x="1" angle="90"/><translate y="6"/></transform>
             <bsdf type="diffuse"><rgb name="reflectance" value="0.5"/></bsdf>
         </shape>"#;
-    let xml = plane_xml(3, ceiling).replace(r#"type="whitted""#, r#"type="path""#);
-    let (l, stats) = centre_pixel_with_stats(&scene_from_str(&xml));
-    assert!(l.max_element() > 0.0);
-    assert_eq!((stats.rays, stats.bounces), (5, 2));
+    for integrator in ["path", "volpath", "volpathmis"] {
+        let xml =
+            plane_xml(3, ceiling).replace(r#"type="whitted""#, &format!(r#"type="{integrator}""#));
+        let (l, stats) = centre_pixel_with_stats(&scene_from_str(&xml));
+        assert!(l.max_element() > 0.0, "{integrator}");
+        assert_eq!((stats.rays, stats.bounces), (5, 2), "{integrator}");
+    }
 }
 
 #[test]
