@@ -157,6 +157,12 @@ fn bad_input_is_refused_in_one_line() {
             "",
             "initial_radius",
         ),
+        // Finite as a double but infinite as the f32 the render uses.
+        (
+            r#"<float name="initial_radius" value="1e39"/>"#,
+            "",
+            "initial_radius",
+        ),
         (
             r#"<integer name="photon_count" value="-5"/>"#,
             "",

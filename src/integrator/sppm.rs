@@ -753,6 +753,23 @@ mod tests {
         assert!(!grid.rebuild(&[VisiblePoint::none(), VisiblePoint::none()], &[0.1, 0.1]));
     }
 
+    /// A grid needs a positive, finite cell size and a finite corner: a live point whose
+    /// radius is 0 or +inf (cell size 1/0 or 1/inf) is refused, not hashed into a lattice
+    /// whose cell coordinates come out inf or NaN.
+    #[test]
+    fn grid_refuses_radii_it_cannot_index() {
+        let live = || VisiblePoint {
+            live: true,
+            p: Vec3::new(0.5, -1.0, 2.0),
+            ..VisiblePoint::none()
+        };
+        let mut grid = Grid::default();
+        assert!(grid.rebuild(&[live()], &[0.1]));
+        for r in [0.0, f64::INFINITY] {
+            assert!(!grid.rebuild(&[live()], &[r]), "radius {r} accepted");
+        }
+    }
+
     /// The update's arithmetic on hand-computed cases: the first iteration (N = 0) keeps α M
     /// photons and shrinks the area by α; a pixel that keeps finding the same photon
     /// density keeps the same density estimate τ / (N_e π r²) up to the N_e growth.

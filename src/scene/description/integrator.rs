@@ -253,9 +253,10 @@ pub(super) fn integrator_desc(o: &Object) -> Result<(IntegratorDesc, bool)> {
                     describe(o)
                 ));
             }
-            if !(initial_radius >= 0.0 && initial_radius.is_finite()) {
+            // The render keeps radii as f32: 1e39 would become +inf and no grid could hold it.
+            if !(initial_radius >= 0.0 && initial_radius <= f32::MAX as f64) {
                 return bad(format!(
-                    "initial_radius of {} must be >= 0 (0: automatic), got {initial_radius}",
+                    "initial_radius of {} must be >= 0 and at most 3.4e38 (0: automatic), got {initial_radius}",
                     describe(o)
                 ));
             }
