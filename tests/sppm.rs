@@ -436,7 +436,8 @@ fn fresnel(cos_i: f64, eta: f64) -> f64 {
 /// the refraction (radiance scaled by 1/η²) sees it with (1 − F)/η², so every pixel is
 /// L (F + (1 − F)/η²) after a single iteration, with no noise at all: picking one lobe would
 /// give 1 or 1/η² per pixel. The thin dielectric (specular_transmittance 0.5) gives
-/// R' + 0.5 (1 − R') with R' = R + (1 − R)² R / (1 − R²), its slab's reflectance.
+/// R' + 0.5 (1 − R') with R' = R + (1 − R)² R / (1 − R²), its slab's reflectance. At
+/// max_depth 1 neither lobe is split off: the image is black.
 #[test]
 fn glass_seen_by_the_camera_is_split_between_its_lobes() {
     // Not 1: a radiance of 1 hides a division by it.
@@ -489,6 +490,17 @@ fn glass_seen_by_the_camera_is_split_between_its_lobes() {
                     SKY * want
                 );
             }
+        }
+        // At max_depth 1 only emission seen directly counts: the sky behind either lobe is a
+        // second segment, so the glass is black and no lobe is traced (one ray per pixel).
+        let depth1 = xml.replace(
+            r#"<integer name="photon_count" value="100"/>"#,
+            r#"<integer name="photon_count" value="100"/><integer name="max_depth" value="1"/>"#,
+        );
+        let out = render_scene(&scene_from_str(&depth1), 1, 7, None);
+        assert_eq!(out.stats.path.rays, pixels, "{bsdf}: rays at max_depth 1");
+        for p in out.film.image() {
+            assert_eq!(p, [0.0; 3], "{bsdf}: a pixel at max_depth 1");
         }
     }
 }
