@@ -396,3 +396,32 @@ fn a_black_environment_traces_no_rays() {
     assert_eq!(out.stats.nonfinite, 0);
     assert!(out.film.image().iter().all(|p| *p == [0.0; 3]));
 }
+
+/// The same scene with a sky of radiance 1: each particle traces one light-path ray (which
+/// escapes) and, when the sky direction it draws from the pinhole (uniform over the sphere
+/// for a constant sky) falls inside the camera's frustum, one ray to test that connection.
+/// The frustum of a 60° × 60° pinhole subtends Ω = 4 asin(sin² 30°) sr, so the rays beyond
+/// one per particle are Binomial(n, Ω / 4π): z-test at α = 0.01.
+#[test]
+fn a_sky_seen_from_the_camera_costs_one_ray_per_connection() {
+    let xml = format!(
+        r#"<scene version="3.0.0">
+            <integrator type="ptracer"/>
+            {}
+            <emitter type="constant"><rgb name="radiance" value="1"/></emitter>
+        </scene>"#,
+        sensor("0, 0, 2", "0, 0, 0", "0, 1, 0", 60.0, 4)
+    );
+    let out = render_scene(&scene_from_str(&xml), 256, SEED, None);
+    let n = out.stats.paths as f64;
+    assert_eq!(n, 4.0 * 4.0 * 256.0);
+    let half = 30f64.to_radians();
+    let p = 4.0 * (half.sin() * half.sin()).asin() / (4.0 * std::f64::consts::PI);
+    let connections = out.stats.path.rays as f64 - n;
+    let z = (connections - n * p) / (n * p * (1.0 - p)).sqrt();
+    assert!(
+        z.abs() < 2.576,
+        "{connections} connection rays, expected {:.1} (z = {z:.2})",
+        n * p
+    );
+}
