@@ -51,8 +51,7 @@ def mse(a, b):
     return float(np.mean((a - b) ** 2))
 
 
-def penumbra_run(scene, spp, seed, threads, tmp):
-    exe = ROOT / "target" / "release" / "penumbra"
+def penumbra_run(exe, scene, spp, seed, threads, tmp):
     out = Path(tmp) / "p.exr"
     stats = Path(tmp) / "p.json"
     cmd = [str(exe), "render", str(ROOT / scene["file"]), "--spp", str(spp), "--seed", str(seed),
@@ -129,6 +128,9 @@ def main():
                     help="threads of both renderers (penumbra --threads, Mitsuba's Dr.Jit "
                          "thread pool); default: every core")
     ap.add_argument("--out", type=Path, help="also write the markdown table here")
+    ap.add_argument("--penumbra", type=Path, default=ROOT / "target" / "release" / "penumbra",
+                    help="the penumbra binary (default: target/release/penumbra; e.g. the "
+                         "profile-guided build of deploy/pgo.sh)")
     args = ap.parse_args()
     if os.path.exists(LLVM):
         os.environ.setdefault("DRJIT_LIBLLVM_PATH", LLVM)
@@ -147,7 +149,7 @@ def main():
     with tempfile.TemporaryDirectory() as tmp:
         for sc in scenes:
             ref = load_exr(ROOT / sc["reference"])
-            pen = [penumbra_run(sc, args.spp, s, args.threads, tmp) for s in seeds]
+            pen = [penumbra_run(args.penumbra, sc, args.spp, s, args.threads, tmp) for s in seeds]
             pt = statistics.median(t for t, _ in pen)
             pm = statistics.median(mse(img, ref) for _, img in pen)
             paths = ref.shape[0] * ref.shape[1] * args.spp
@@ -165,12 +167,14 @@ def main():
     head = ["scene", "penumbra s", "Mpath/s", "MSE"]
     for v in variants:
         head += [f"{v} s", "Mpath/s", "MSE", f"efficiency ratio vs {v}"]
-    threads = f" --threads {args.threads}" if args.threads else ""
+    options = f" --threads {args.threads}" if args.threads else ""
+    if args.penumbra != ap.get_default("penumbra"):
+        options += f" --penumbra {args.penumbra}"
     lines = [
         f"Side-by-side at {args.spp} spp, medians of {args.repeat} seeds, "
         f"{args.threads or os.cpu_count()} thread(s); "
         f"machine: {platform.machine()}, {os.cpu_count()} cores; "
-        f"command: `python validation/perf/side_by_side.py --spp {args.spp} --repeat {args.repeat}{threads}`",
+        f"command: `python validation/perf/side_by_side.py --spp {args.spp} --repeat {args.repeat}{options}`",
         "",
         "| " + " | ".join(head) + " |",
         "|" + "---|" * len(head),
