@@ -377,20 +377,25 @@ fn unsupported_scenes_are_refused_in_one_line() {
     assert!(matches!(s.integrator, Integrator::ParticleTracer(_)));
 }
 
+/// A light tracer under a constant sky of `radiance`, nothing else in the scene, seen by a
+/// 60° pinhole of 4 × 4 pixels.
+fn sky_only(radiance: f32) -> Scene {
+    scene_from_str(&format!(
+        r#"<scene version="3.0.0">
+            <integrator type="ptracer"/>
+            {}
+            <emitter type="constant"><rgb name="radiance" value="{radiance}"/></emitter>
+        </scene>"#,
+        sensor("0, 0, 2", "0, 0, 0", "0, 1, 0", 60.0, 4)
+    ))
+}
+
 /// A connection whose value is zero is not worth a shadow ray: with a black environment (the
 /// only emitter, nothing else in the scene) the light tracer renders black without tracing a
 /// single ray, and splats no NaN.
 #[test]
 fn a_black_environment_traces_no_rays() {
-    let xml = format!(
-        r#"<scene version="3.0.0">
-            <integrator type="ptracer"/>
-            {}
-            <emitter type="constant"><rgb name="radiance" value="0"/></emitter>
-        </scene>"#,
-        sensor("0, 0, 2", "0, 0, 0", "0, 1, 0", 60.0, 4)
-    );
-    let out = render_scene(&scene_from_str(&xml), 16, SEED, None);
+    let out = render_scene(&sky_only(0.0), 16, SEED, None);
     assert_eq!(out.stats.paths, 4 * 4 * 16);
     assert_eq!(out.stats.path.rays, 0);
     assert_eq!(out.stats.nonfinite, 0);
@@ -404,15 +409,7 @@ fn a_black_environment_traces_no_rays() {
 /// one per particle are Binomial(n, Ω / 4π): z-test at α = 0.01.
 #[test]
 fn a_sky_seen_from_the_camera_costs_one_ray_per_connection() {
-    let xml = format!(
-        r#"<scene version="3.0.0">
-            <integrator type="ptracer"/>
-            {}
-            <emitter type="constant"><rgb name="radiance" value="1"/></emitter>
-        </scene>"#,
-        sensor("0, 0, 2", "0, 0, 0", "0, 1, 0", 60.0, 4)
-    );
-    let out = render_scene(&scene_from_str(&xml), 256, SEED, None);
+    let out = render_scene(&sky_only(1.0), 256, SEED, None);
     let n = out.stats.paths as f64;
     assert_eq!(n, 4.0 * 4.0 * 256.0);
     let half = 30f64.to_radians();
