@@ -264,6 +264,7 @@ mod tests {
             assert!((got - want).abs() < 1e-12, "η {e}, k −{k}: {got} vs {want}");
         }
     }
+
     #[test]
     fn diffuse_fresnel_reflectance_relation() {
         // Energy balance across a smooth interface: η² (1 − Fdr(1/η)) = 1 − Fdr(η).
