@@ -1471,3 +1471,35 @@ fn importance_mode_is_finite_at_extreme_iors() {
     }
     assert_eq!(checked, 8 * dirs.len() * dirs.len());
 }
+
+/// Float parameters of `principled` are not clamped (Mitsuba takes them as given), so a
+/// weight can leave [0, 1]: with metallic 1.5 the dielectric lobes' weight 1 − metallic is
+/// negative and each of them is switched off, the sheen included, so that the BSDF stays
+/// non-negative. A sheen of 1 then changes nothing, and a negative sheen (−0.5) with a
+/// dielectric base adds nothing either.
+#[test]
+fn principled_sheen_is_off_where_its_weight_is_not_positive() {
+    let with = |metallic: f32, sheen: f32| {
+        bsdf_from_xml(&format!(
+            r#"<bsdf type="principled"><float name="metallic" value="{metallic}"/>
+                <float name="sheen" value="{sheen}"/><float name="roughness" value="0.4"/></bsdf>"#
+        ))
+    };
+    for (metallic, sheen) in [(1.5, 1.0), (0.0, -0.5)] {
+        let (a, b) = (with(metallic, sheen), with(metallic, 0.0));
+        let mut lit = 0;
+        for ti in [5.0, 30.0, 60.0, 85.0] {
+            for to in [5.0, 30.0, 60.0, 85.0] {
+                for po in [0.0, 90.0, 180.0] {
+                    let (wi, wo) = (dir(ti, 20.0), dir(to, po));
+                    let (fa, fb) = (a.eval(wi, wo), b.eval(wi, wo));
+                    assert_eq!(fa, fb, "metallic {metallic}, sheen {sheen}, {wi} -> {wo}");
+                    assert!(fa.min_element() >= 0.0, "{fa}");
+                    lit += usize::from(fb.max_element() > 0.0);
+                }
+            }
+        }
+        // The comparison is between lit values, not zeros (metal or diffuse lobe).
+        assert!(lit > 40, "metallic {metallic}: {lit} of 48 pairs lit");
+    }
+}
