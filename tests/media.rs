@@ -566,3 +566,55 @@ fn max_depth_one_is_emission_only_and_rays_are_counted() {
         }
     }
 }
+
+/// A small grid of high majorant (σ̄ = 20 in its last texel, 0.1 wherever the rays go)
+/// inside a container up to 8 times its size, lit and seen along z as in the test above:
+/// the pixel is exp(−2 · 0.1 · 2) whatever the container's size. The majorant transmittance
+/// of a segment is exp(−σ̄ t); measured from the grid's box to the container's far side
+/// (t = 9 for the 8× container: σ̄ t = 180) it underflowed to 0 in f32 and tr/pdf became
+/// 0/0: the image was black. Segments now stop at the box.
+#[test]
+fn a_dense_small_grid_in_a_large_container_keeps_its_shadow_rays() {
+    let path = vol_file(
+        "media_majorant.vol",
+        [5, 1, 1],
+        1,
+        &[0.1, 0.1, 0.1, 0.1, 20.0],
+    );
+    let containers = [4.0, 8.0];
+    let mut z = ZTests::new(containers.len() * INTEGRATORS.len() * 3);
+    for container in containers {
+        for integrator in INTEGRATORS {
+            // The grid's box is x in [−1, 3], y and z in [−1, 1]; texel centres at x = −0.6,
+            // 0.2, 1.0, 1.8, 2.6, so σt = 0.1 for x < 1.8, where the camera looks.
+            let body = format!(
+                r#"<emitter type="directional">
+                       <vector name="direction" value="0, 0, -1"/>
+                       <rgb name="irradiance" value="3.14159265358979"/>
+                   </emitter>
+                   <medium type="heterogeneous" id="m">
+                       <volume name="sigma_t" type="gridvolume">
+                           <string name="filename" value="{path}"/>
+                           <transform name="to_world"><scale value="4, 2, 2"/><translate value="-1, -1, -1"/></transform>
+                       </volume>
+                       <rgb name="albedo" value="0"/>
+                   </medium>
+                   <shape type="cube"><transform name="to_world"><scale value="{container}"/></transform>
+                       <bsdf type="null"/><ref id="m" name="interior"/></shape>
+                   <shape type="rectangle">
+                       <transform name="to_world"><scale value="3"/><translate value="0, 0, -2"/></transform>
+                       <bsdf type="diffuse"><rgb name="reflectance" value="1"/></bsdf>
+                   </shape>"#
+            );
+            // The camera outside the largest container.
+            let xml = scene_xml(integrator, 2, "", &body)
+                .replace(r#"<lookat origin="0, 0, 5""#, r#"<lookat origin="0, 0, 9""#);
+            z.check(
+                &format!("{integrator} in a container of half-size {container}"),
+                render_mean(&xml, 1024),
+                [(-0.4f64).exp(); 3],
+            );
+        }
+    }
+    z.finish(containers.len() * INTEGRATORS.len() * 3);
+}

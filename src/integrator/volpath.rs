@@ -170,7 +170,7 @@ pub(crate) fn trace_shadow<W: ShadowWeights>(
             let (mut mi, si_t) = track_step(
                 scene, med, &mut ray, remaining, &mut hit, channel, sampler, stats,
             );
-            let t = remaining.min(mi.t.min(si_t)) - mi.mint;
+            let t = mi.segment(remaining.min(si_t));
             let tr = exp3(-t * mi.combined_extinction);
             let pdf = if si_t < mi.t || mi.t > remaining {
                 tr

@@ -59,6 +59,9 @@ pub struct MediumInteraction {
     pub wi: Vec3,
     /// Where the sampled segment starts (the medium's box entry, or 0).
     pub mint: f32,
+    /// Where it ends: the box exit clipped to the ray's tmax (∞ in a homogeneous medium; 0
+    /// when the ray misses the box). The majorant acts only on [mint, maxt].
+    pub maxt: f32,
     pub sigma_s: Vec3,
     pub sigma_n: Vec3,
     pub sigma_t: Vec3,
@@ -70,6 +73,13 @@ impl MediumInteraction {
     #[inline]
     pub fn is_valid(&self) -> bool {
         self.t < f32::INFINITY
+    }
+
+    /// Length of the sampled segment inside the medium's box, up to the collision or `end`
+    /// (whichever comes first), never negative.
+    #[inline]
+    pub fn segment(&self, end: f32) -> f32 {
+        (self.t.min(end).min(self.maxt) - self.mint).max(0.0)
     }
 }
 
@@ -108,6 +118,7 @@ impl Medium {
         let m = combined_extinction[channel];
         let sampled_t = mint + (-(1.0 - u).ln() / m);
         let valid = active && sampled_t <= maxt;
+        let maxt = if active { maxt } else { 0.0 };
         let p = ray.at(sampled_t);
         let (sigma_s, sigma_n, sigma_t) = if valid {
             match &self.kind {
@@ -122,6 +133,7 @@ impl Medium {
             p,
             wi: -ray.d,
             mint,
+            maxt,
             sigma_s,
             sigma_n,
             sigma_t,
@@ -132,10 +144,12 @@ impl Medium {
     /// The majorant transmittance from `mi.mint` to the collision (or to the surface at
     /// distance `si_t` when that comes first) and the density of having sampled that
     /// (free-flight pdf: tr · m at a collision, tr when the surface came first), per channel
-    /// (Mitsuba's `transmittance_eval_pdf`).
+    /// (Mitsuba's `transmittance_eval_pdf`). Unlike Mitsuba's, the segment stops at the
+    /// medium's box (`mi.maxt`), beyond which no distance is sampled: the same ratio tr/pdf,
+    /// but exp(−m t) no longer underflows to 0/0 along a long ray past a small, dense grid.
     #[inline]
     pub fn transmittance_eval_pdf(mi: &MediumInteraction, si_t: f32) -> (Vec3, Vec3) {
-        let t = mi.t.min(si_t) - mi.mint;
+        let t = mi.segment(si_t);
         let tr = exp3(-t * mi.combined_extinction);
         let pdf = if si_t < mi.t {
             tr
