@@ -144,9 +144,10 @@ impl Medium {
     /// The majorant transmittance from `mi.mint` to the collision (or to the surface at
     /// distance `si_t` when that comes first) and the density of having sampled that
     /// (free-flight pdf: tr · m at a collision, tr when the surface came first), per channel
-    /// (Mitsuba's `transmittance_eval_pdf`). Unlike Mitsuba's, the segment stops at the
-    /// medium's box (`mi.maxt`), beyond which no distance is sampled: the same ratio tr/pdf,
-    /// but exp(−m t) no longer underflows to 0/0 along a long ray past a small, dense grid.
+    /// (Mitsuba's `transmittance_eval_pdf`). The segment stops at the medium's box
+    /// (`mi.maxt`), beyond which no distance is sampled: the same ratio tr/pdf as measuring
+    /// to the surface, but exp(−m t) does not underflow to 0/0 along a long ray past a
+    /// small, dense grid (docs/media.md).
     #[inline]
     pub fn transmittance_eval_pdf(mi: &MediumInteraction, si_t: f32) -> (Vec3, Vec3) {
         let t = mi.segment(si_t);
