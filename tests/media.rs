@@ -248,6 +248,24 @@ fn slab_transmittance_is_exp_of_optical_depth() {
     z.finish(cases.len() * INTEGRATORS.len() * 3);
 }
 
+/// A directional light of irradiance π along −z, `medium` (id "m") filling a null cube of
+/// half-size `container` about the origin, and a white diffuse plane at z = −2 inside it.
+fn lit_plane_in_medium(medium: &str, container: f64) -> String {
+    format!(
+        r#"<emitter type="directional">
+               <vector name="direction" value="0, 0, -1"/>
+               <rgb name="irradiance" value="3.14159265358979"/>
+           </emitter>
+           {medium}
+           <shape type="cube"><transform name="to_world"><scale value="{container}"/></transform>
+               <bsdf type="null"/><ref id="m" name="interior"/></shape>
+           <shape type="rectangle">
+               <transform name="to_world"><scale value="3"/><translate value="0, 0, -2"/></transform>
+               <bsdf type="diffuse"><rgb name="reflectance" value="1"/></bsdf>
+           </shape>"#
+    )
+}
+
 /// A white diffuse plane behind the slab, lit straight along −z by a directional light of
 /// irradiance π through the slab, seen along −z through the slab, direct light only: the
 /// pixel is T_camera · T_shadow = exp(−2τ), the camera ray delta-tracked and the shadow ray
@@ -267,18 +285,7 @@ fn shadow_rays_carry_the_slab_transmittance() {
     let mut z = ZTests::new(cases.len() * INTEGRATORS.len() * 3);
     for (name, medium, tau) in &cases {
         for integrator in INTEGRATORS {
-            let body = format!(
-                r#"<emitter type="directional">
-                       <vector name="direction" value="0, 0, -1"/>
-                       <rgb name="irradiance" value="3.14159265358979"/>
-                   </emitter>
-                   {medium}
-                   <shape type="cube"><bsdf type="null"/><ref id="m" name="interior"/></shape>
-                   <shape type="rectangle">
-                       <transform name="to_world"><scale value="3"/><translate value="0, 0, -2"/></transform>
-                       <bsdf type="diffuse"><rgb name="reflectance" value="1"/></bsdf>
-                   </shape>"#
-            );
+            let body = lit_plane_in_medium(medium, 1.0);
             let xml = scene_xml(integrator, 2, "", &body);
             let expected = tau.map(|t| (-2.0 * t).exp());
             z.check(
@@ -587,25 +594,16 @@ fn a_dense_small_grid_in_a_large_container_keeps_its_shadow_rays() {
         for integrator in INTEGRATORS {
             // The grid's box is x in [−1, 3], y and z in [−1, 1]; texel centres at x = −0.6,
             // 0.2, 1.0, 1.8, 2.6, so σt = 0.1 for x < 1.8, where the camera looks.
-            let body = format!(
-                r#"<emitter type="directional">
-                       <vector name="direction" value="0, 0, -1"/>
-                       <rgb name="irradiance" value="3.14159265358979"/>
-                   </emitter>
-                   <medium type="heterogeneous" id="m">
+            let medium = format!(
+                r#"<medium type="heterogeneous" id="m">
                        <volume name="sigma_t" type="gridvolume">
                            <string name="filename" value="{path}"/>
                            <transform name="to_world"><scale value="4, 2, 2"/><translate value="-1, -1, -1"/></transform>
                        </volume>
                        <rgb name="albedo" value="0"/>
-                   </medium>
-                   <shape type="cube"><transform name="to_world"><scale value="{container}"/></transform>
-                       <bsdf type="null"/><ref id="m" name="interior"/></shape>
-                   <shape type="rectangle">
-                       <transform name="to_world"><scale value="3"/><translate value="0, 0, -2"/></transform>
-                       <bsdf type="diffuse"><rgb name="reflectance" value="1"/></bsdf>
-                   </shape>"#
+                   </medium>"#
             );
+            let body = lit_plane_in_medium(&medium, container);
             // The camera outside the largest container.
             let xml = scene_xml(integrator, 2, "", &body)
                 .replace(r#"<lookat origin="0, 0, 5""#, r#"<lookat origin="0, 0, 9""#);
