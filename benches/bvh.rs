@@ -4,7 +4,8 @@
 //! The `bvh-layouts` group traces the same rays through obvhs's binary BVH (`Bvh2`) and its
 //! 8-wide compressed BVH (`CwBvh`, Ylitie et al. 2017), both built by obvhs's
 //! `medium_build` and calling penumbra's scalar watertight triangle test, and through
-//! penumbra's own 4-wide BVH (`Accel`): which layout traverses fastest here.
+//! penumbra's own 4-wide and 8-wide (AVX2) BVHs (`Accel`): which layout traverses fastest
+//! here.
 //! Run with `cargo bench --bench bvh`.
 
 use criterion::{criterion_group, criterion_main, BenchmarkId, Criterion, Throughput};
@@ -12,7 +13,7 @@ use glam::{DMat4, Vec3};
 use obvhs::aabb::Aabb;
 use obvhs::ray::RayHit;
 use obvhs::{Boundable, BvhBuildParams};
-use penumbra::accel::Accel;
+use penumbra::accel::{Accel, Layout};
 use penumbra::geometry::Ray;
 use penumbra::sampler::SampleStream;
 use penumbra::scene::build::load_obj;
@@ -182,7 +183,8 @@ fn layouts(c: &mut Criterion) {
         BvhBuildParams::medium_build(),
         &mut Duration::default(),
     );
-    let accel = Accel::build(&shapes);
+    let accel = Accel::build_with_layout(&shapes, Layout::Wide4);
+    let accel8 = Accel::build_with_layout(&shapes, Layout::Wide8);
     // penumbra's triangle test on the triangle in BVH slot `slot`.
     let test = |order: &[u32], shear: &RayShear, r: &obvhs::ray::Ray, slot: usize| {
         intersect_triangle(shear, &tris[order[slot] as usize].0, r.tmax)
@@ -220,6 +222,8 @@ fn layouts(c: &mut Criterion) {
         })
     };
     let accel_occluded = |r: &Ray| accel.occluded(r, &shapes);
+    let accel8_closest = |r: &Ray| accel8.intersect(r, &shapes).map_or(f32::INFINITY, |h| h.t);
+    let accel8_occluded = |r: &Ray| accel8.occluded(r, &shapes);
 
     let mut g = c.benchmark_group("bvh-layouts");
     let n = 1 << 16;
@@ -249,6 +253,14 @@ fn layouts(c: &mut Criterion) {
                 }
             }
         }
+        let differ8 = rays
+            .iter()
+            .filter(|r| accel8_closest(r) != accel_closest(r))
+            .count();
+        eprintln!(
+            "{name}: the {:?} BVH's closest hits differ from the 4-wide one's on {differ8} rays",
+            accel8.layout()
+        );
         eprintln!(
             "{name}: {hits:?} hits of {n} rays (Bvh2, CwBvh, 4-wide); rays whose closest hit \
              differs from the 4-wide BVH's [axis-parallel, t < 1e-4, other]: Bvh2 {:?}, \
@@ -267,9 +279,16 @@ fn layouts(c: &mut Criterion) {
         bench(format!("penumbra 4-wide closest-hit {name}"), &|r| {
             accel_closest(r) < f32::INFINITY
         });
+        bench(format!("penumbra 8-wide closest-hit {name}"), &|r| {
+            accel8_closest(r) < f32::INFINITY
+        });
         bench(format!("obvhs Bvh2 occlusion {name}"), &bvh2_occluded);
         bench(format!("obvhs CwBvh occlusion {name}"), &cwbvh_occluded);
         bench(format!("penumbra 4-wide occlusion {name}"), &accel_occluded);
+        bench(
+            format!("penumbra 8-wide occlusion {name}"),
+            &accel8_occluded,
+        );
     }
     g.finish();
 }

@@ -345,6 +345,16 @@ fn permute<const KZ: usize>(v: Vec3) -> Vec3 {
 }
 
 impl RayShear {
+    /// The world axis that the permutation takes to z (the direction's largest component).
+    pub fn kz(&self) -> usize {
+        self.kz
+    }
+
+    /// The shear (s_x, s_y, s_z) of the permuted space.
+    pub fn shear(&self) -> (f32, f32, f32) {
+        (self.sx, self.sy, self.sz)
+    }
+
     pub fn new(o: Vec3, d: Vec3) -> Self {
         let a = d.abs();
         let kz = if a.x > a.y && a.x > a.z {

@@ -33,6 +33,29 @@ use obvhs::{Boundable, BvhBuildParams};
 use std::mem::MaybeUninit;
 use std::time::Duration;
 
+#[cfg(target_arch = "x86_64")]
+mod wide8;
+
+/// The node and leaf width of a hierarchy: 4 (SSE, any x86-64 processor) or 8 (AVX2,
+/// detected at run time; see `wide8.rs`). Both find the same hits (t and barycentrics
+/// bit-identical); they may keep different ones of two hits at exactly the same distance.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Layout {
+    Wide4,
+    Wide8,
+}
+
+impl Layout {
+    /// The widest layout this processor runs.
+    pub fn best() -> Layout {
+        #[cfg(target_arch = "x86_64")]
+        if wide8::supported() {
+            return Layout::Wide8;
+        }
+        Layout::Wide4
+    }
+}
+
 /// A primitive as the BVH sees it: triangle `index` of mesh `shape`, an analytic shape
 /// (sphere, disk, cylinder, SDF grid: one primitive each), or an instance of a shape group.
 /// Triangle vertices are read from the mesh once, when the leaves are packed.
@@ -258,6 +281,35 @@ pub struct Accel {
     /// Instances (primitives of this hierarchy) and the shape groups they place.
     instances: Vec<Instance>,
     groups: Vec<Group>,
+    /// The 8-wide hierarchy, which replaces `nodes` and `leaves` when the layout is
+    /// [`Layout::Wide8`].
+    #[cfg(target_arch = "x86_64")]
+    wide8: Option<wide8::Wide8>,
+}
+
+/// The children a node of `width` takes from binary node `b`: its two children, then
+/// repeatedly the two children of the inner one of largest surface area, until there are
+/// `width` or only leaves are left.
+fn open_children(nodes: &[obvhs::bvh2::node::Bvh2Node], b: usize, width: usize) -> Vec<usize> {
+    let first = nodes[b].first_index as usize;
+    let mut children = vec![first, first + 1];
+    while children.len() < width {
+        let widest = children
+            .iter()
+            .enumerate()
+            .filter(|(_, &c)| nodes[c].prim_count == 0)
+            .max_by(|x, y| {
+                let ax = nodes[*x.1].aabb.half_area();
+                let ay = nodes[*y.1].aabb.half_area();
+                ax.total_cmp(&ay)
+            })
+            .map(|(i, _)| i);
+        let Some(i) = widest else { break };
+        let c = children.swap_remove(i);
+        let f = nodes[c].first_index as usize;
+        children.extend([f, f + 1]);
+    }
+    children
 }
 
 impl Accel {
@@ -271,13 +323,54 @@ impl Accel {
         Self::build_with_instances(shapes, 0..shapes.len(), Vec::new(), Vec::new())
     }
 
+    /// [`Accel::build`] in the given layout ([`Layout::Wide8`] only where
+    /// [`Layout::best`] is, else `Wide4`).
+    pub fn build_with_layout(shapes: &[Shape], layout: Layout) -> Self {
+        let layout = if layout == Layout::Wide8 {
+            Layout::best()
+        } else {
+            layout
+        };
+        Self::build_in_layout(shapes, 0..shapes.len(), Vec::new(), Vec::new(), layout)
+    }
+
+    /// The layout this hierarchy was built in.
+    pub fn layout(&self) -> Layout {
+        #[cfg(target_arch = "x86_64")]
+        if self.wide8.is_some() {
+            return Layout::Wide8;
+        }
+        Layout::Wide4
+    }
+
+    /// Stack entries one traversal of this hierarchy can need.
+    #[cfg(test)]
+    fn stack_entries(&self) -> usize {
+        #[cfg(target_arch = "x86_64")]
+        if let Some(w) = &self.wide8 {
+            return w.stack_size;
+        }
+        self.stack_size
+    }
+
     /// The hierarchy of the shapes `range` of `shapes` (indices stay global) and of
-    /// `instances`, whose groups are `groups` (each built over its own shapes).
+    /// `instances`, whose groups are `groups` (each built over its own shapes), in the
+    /// widest layout this processor runs.
     pub fn build_with_instances(
         shapes: &[Shape],
         range: std::ops::Range<usize>,
         instances: Vec<Instance>,
         groups: Vec<Group>,
+    ) -> Self {
+        Self::build_in_layout(shapes, range, instances, groups, Layout::best())
+    }
+
+    fn build_in_layout(
+        shapes: &[Shape],
+        range: std::ops::Range<usize>,
+        instances: Vec<Instance>,
+        groups: Vec<Group>,
+        layout: Layout,
     ) -> Self {
         let mut prims = Vec::new();
         for i in range {
@@ -306,6 +399,8 @@ impl Accel {
             bounds: None,
             instances,
             groups,
+            #[cfg(target_arch = "x86_64")]
+            wide8: None,
         };
         if prims.is_empty() {
             return accel;
@@ -333,7 +428,11 @@ impl Accel {
         let bvh = obvhs::bvh2::builder::build_bvh2(
             &bounded,
             BvhBuildParams {
-                max_prims_per_leaf: 4,
+                // One leaf block's worth: its primitives are tested at once.
+                max_prims_per_leaf: match layout {
+                    Layout::Wide4 => 4,
+                    Layout::Wide8 => 8,
+                },
                 ..BvhBuildParams::medium_build()
             },
             &mut Duration::default(),
@@ -344,7 +443,13 @@ impl Accel {
             .map(|&i| prims[i as usize])
             .collect();
         drop(bounded);
-        accel.collapse(&bvh, shapes);
+        match layout {
+            #[cfg(target_arch = "x86_64")]
+            Layout::Wide8 => {
+                accel.wide8 = Some(wide8::Wide8::collapse(&bvh, &accel.prims, shapes));
+            }
+            _ => accel.collapse(&bvh, shapes),
+        }
         accel
     }
 
@@ -366,24 +471,7 @@ impl Accel {
         let mut work = vec![(0usize, 0usize, 1usize)];
         while let Some((b, n4, depth)) = work.pop() {
             max_depth = max_depth.max(depth);
-            let first = nodes[b].first_index as usize;
-            let mut children = vec![first, first + 1];
-            while children.len() < 4 {
-                let widest = children
-                    .iter()
-                    .enumerate()
-                    .filter(|(_, &c)| nodes[c].prim_count == 0)
-                    .max_by(|x, y| {
-                        let ax = nodes[*x.1].aabb.half_area();
-                        let ay = nodes[*y.1].aabb.half_area();
-                        ax.total_cmp(&ay)
-                    })
-                    .map(|(i, _)| i);
-                let Some(i) = widest else { break };
-                let c = children.swap_remove(i);
-                let f = nodes[c].first_index as usize;
-                children.extend([f, f + 1]);
-            }
+            let children = open_children(nodes, b, 4);
             let mut node = Node4::EMPTY;
             for (lane, &c) in children.iter().enumerate() {
                 let aabb = nodes[c].aabb;
@@ -621,6 +709,21 @@ impl Accel {
 
     #[inline]
     fn run(&self, ray: &Ray, shapes: &[Shape], any: bool) -> Option<Hit> {
+        #[cfg(target_arch = "x86_64")]
+        if let Some(wide) = &self.wide8 {
+            if wide.is_empty() {
+                return None;
+            }
+            // SAFETY (all three calls): a `Wide8` is only built where `wide8::supported()`
+            // found AVX2.
+            return if wide.stack_size <= STACK {
+                let mut stack = [MaybeUninit::uninit(); STACK];
+                unsafe { self.traverse8(wide, ray, shapes, any, &mut stack) }
+            } else {
+                let mut stack = vec![MaybeUninit::uninit(); wide.stack_size];
+                unsafe { self.traverse8(wide, ray, shapes, any, &mut stack) }
+            };
+        }
         if self.root == EMPTY {
             return None;
         }
@@ -753,9 +856,11 @@ mod tests {
         }
     }
 
-    /// Closest hits and occlusion from the 4-wide BVH equal brute force exactly, on a soup of
+    /// Closest hits and occlusion from the 4-wide and the 8-wide BVH equal brute force
+    /// exactly, on a soup of
     /// small and large (box-spanning) triangles with spheres, and on a degenerate pile of
-    /// identical triangles whose tree is deep enough for the heap-allocated stack.
+    /// identical triangles whose tree is deep enough for the heap-allocated stack; the two
+    /// layouts' barycentrics agree bit for bit.
     #[test]
     fn wide_bvh_matches_brute_force() {
         let mut rng = rand_pcg::Pcg32::seed_from_u64(8);
@@ -801,31 +906,38 @@ mod tests {
         );
         let mut scenes = vec![[vec![shape(ShapeGeometry::Mesh(soup))], spheres].concat()];
         scenes.push(vec![shape(ShapeGeometry::Mesh(pile))]);
-        for (k, shapes) in scenes.iter().enumerate() {
-            let accel = Accel::build(shapes);
-            let mut hits = 0;
-            for i in 0..20000 {
-                let o = v3(6.0);
-                let target = if k == 1 {
-                    Vec3::new(0.3, 0.3, 9.0) + v3(0.5)
-                } else {
-                    v3(4.0)
-                };
-                let tmax = if i % 4 == 0 { 3.0 } else { f32::INFINITY };
-                let ray = Ray::new(o, target - o, tmax);
-                let expected = brute_force(shapes, &ray);
-                let got = accel.intersect(&ray, shapes).map(|h| h.t);
-                assert_eq!(expected, got, "scene {k} ray {i}");
-                assert_eq!(expected.is_some(), accel.occluded(&ray, shapes));
-                hits += expected.is_some() as u32;
-            }
-            assert!(hits > 2000, "scene {k}: {hits} hits");
-            if k == 1 {
-                assert!(
-                    accel.stack_size > STACK,
-                    "the pile must need more than {STACK} stack entries, got {}",
-                    accel.stack_size
-                );
+        for layout in [Layout::Wide4, Layout::Wide8] {
+            for (k, shapes) in scenes.iter().enumerate() {
+                let accel = Accel::build_with_layout(shapes, layout);
+                assert!(accel.layout() == layout || Layout::best() == Layout::Wide4);
+                let four = Accel::build_with_layout(shapes, Layout::Wide4);
+                let mut hits = 0;
+                for i in 0..20000 {
+                    let o = v3(6.0);
+                    let target = if k == 1 {
+                        Vec3::new(0.3, 0.3, 9.0) + v3(0.5)
+                    } else {
+                        v3(4.0)
+                    };
+                    let tmax = if i % 4 == 0 { 3.0 } else { f32::INFINITY };
+                    let ray = Ray::new(o, target - o, tmax);
+                    let expected = brute_force(shapes, &ray);
+                    let hit = accel.intersect(&ray, shapes);
+                    assert_eq!(expected, hit.map(|h| h.t), "{layout:?} scene {k} ray {i}");
+                    // The same barycentrics from both layouts, bit for bit.
+                    let bary = |h: Option<Hit>| h.map(|h| (h.t, h.b1, h.b2));
+                    assert_eq!(bary(four.intersect(&ray, shapes)), bary(hit));
+                    assert_eq!(expected.is_some(), accel.occluded(&ray, shapes));
+                    hits += expected.is_some() as u32;
+                }
+                assert!(hits > 2000, "{layout:?} scene {k}: {hits} hits");
+                if k == 1 {
+                    assert!(
+                        accel.stack_entries() > STACK,
+                        "the pile must need more than {STACK} stack entries, got {}",
+                        accel.stack_entries()
+                    );
+                }
             }
         }
     }
