@@ -290,14 +290,20 @@ pub struct Accel {
 /// The children a node of `width` takes from binary node `b`: its two children, then
 /// repeatedly the two children of the inner one of largest surface area, until there are
 /// `width` or only leaves are left.
-fn open_children(nodes: &[obvhs::bvh2::node::Bvh2Node], b: usize, width: usize) -> Vec<usize> {
+/// `is_leaf(c)` says which binary nodes stay whole (become a leaf).
+fn open_children(
+    nodes: &[obvhs::bvh2::node::Bvh2Node],
+    b: usize,
+    width: usize,
+    is_leaf: impl Fn(usize) -> bool,
+) -> Vec<usize> {
     let first = nodes[b].first_index as usize;
     let mut children = vec![first, first + 1];
     while children.len() < width {
         let widest = children
             .iter()
             .enumerate()
-            .filter(|(_, &c)| nodes[c].prim_count == 0)
+            .filter(|(_, &c)| !is_leaf(c))
             .max_by(|x, y| {
                 let ax = nodes[*x.1].aabb.half_area();
                 let ay = nodes[*y.1].aabb.half_area();
@@ -471,7 +477,7 @@ impl Accel {
         let mut work = vec![(0usize, 0usize, 1usize)];
         while let Some((b, n4, depth)) = work.pop() {
             max_depth = max_depth.max(depth);
-            let children = open_children(nodes, b, 4);
+            let children = open_children(nodes, b, 4, |c| nodes[c].prim_count > 0);
             let mut node = Node4::EMPTY;
             for (lane, &c) in children.iter().enumerate() {
                 let aabb = nodes[c].aabb;
@@ -859,8 +865,9 @@ mod tests {
     /// Closest hits and occlusion from the 4-wide and the 8-wide BVH equal brute force
     /// exactly, on a soup of
     /// small and large (box-spanning) triangles with spheres, and on a degenerate pile of
-    /// identical triangles whose tree is deep enough for the heap-allocated stack; the two
-    /// layouts' barycentrics agree bit for bit.
+    /// identical triangles whose tree is deep enough for the heap-allocated stack, and on
+    /// quads (two triangles with one box, merged into one leaf block); the two layouts'
+    /// barycentrics agree bit for bit.
     #[test]
     fn wide_bvh_matches_brute_force() {
         let mut rng = rand_pcg::Pcg32::seed_from_u64(8);
@@ -904,8 +911,27 @@ mod tests {
                 .collect(),
             false,
         );
+        // Three stacked quads of two triangles each, axis-aligned as Mitsuba's rectangles
+        // often are: obvhs leaves one triangle per leaf in so small a tree, and the 8-wide
+        // layout merges each quad's two leaves (one box) into one leaf block.
+        let mut quad_positions = Vec::new();
+        for z in [-2.0, 0.0, 2.0] {
+            let c = Vec3::new(0.5 * z, 0.0, z);
+            let (u, v) = (Vec3::X * 4.0, Vec3::Y * 4.0);
+            quad_positions.extend([c - u - v, c + u - v, c + u + v, c - u + v]);
+        }
+        let quads = Mesh::new(
+            quad_positions,
+            None,
+            None,
+            (0..3u32)
+                .flat_map(|i| [[4 * i, 4 * i + 1, 4 * i + 2], [4 * i, 4 * i + 2, 4 * i + 3]])
+                .collect(),
+            false,
+        );
         let mut scenes = vec![[vec![shape(ShapeGeometry::Mesh(soup))], spheres].concat()];
         scenes.push(vec![shape(ShapeGeometry::Mesh(pile))]);
+        scenes.push(vec![shape(ShapeGeometry::Mesh(quads))]);
         for layout in [Layout::Wide4, Layout::Wide8] {
             for (k, shapes) in scenes.iter().enumerate() {
                 let accel = Accel::build_with_layout(shapes, layout);

@@ -204,8 +204,14 @@ impl Wide8 {
         if nodes.is_empty() {
             return wide;
         }
-        if nodes[0].prim_count > 0 {
-            wide.root = wide.add_leaf(&nodes[0], prims, shapes);
+        // A subtree of at most eight primitives becomes one leaf block: testing its
+        // triangles at once costs about as much as one node test, less than the nodes and
+        // partly filled blocks it would otherwise become (obvhs's SAH prices each primitive
+        // test separately and often leaves one triangle per leaf).
+        let merge = merged_subtrees(nodes);
+        let is_leaf = |c: usize| merge[c];
+        if is_leaf(0) {
+            wide.root = wide.add_leaf(&leaf_slots(nodes, 0), prims, shapes);
             return wide;
         }
         wide.nodes.push(Node8::EMPTY);
@@ -216,15 +222,18 @@ impl Wide8 {
         while let Some((b, n8, depth)) = work.pop() {
             max_depth = max_depth.max(depth);
             let mut node = Node8::EMPTY;
-            for (lane, c) in super::open_children(nodes, b, 8).into_iter().enumerate() {
+            for (lane, c) in super::open_children(nodes, b, 8, is_leaf)
+                .into_iter()
+                .enumerate()
+            {
                 let aabb = nodes[c].aabb;
                 for a in 0..3 {
                     node.lo[a][lane] = aabb.min[a];
                     node.hi[a][lane] = aabb.max[a];
                 }
                 node.valid |= 1 << lane;
-                node.child[lane] = if nodes[c].prim_count > 0 {
-                    wide.add_leaf(&nodes[c], prims, shapes)
+                node.child[lane] = if is_leaf(c) {
+                    wide.add_leaf(&leaf_slots(nodes, c), prims, shapes)
                 } else {
                     let idx = wide.nodes.len();
                     wide.nodes.push(Node8::EMPTY);
@@ -238,11 +247,10 @@ impl Wide8 {
         wide
     }
 
-    /// Packs the primitives of one binary leaf into leaf blocks of eight; returns its child
-    /// reference.
-    fn add_leaf(&mut self, node: &Bvh2Node, prims: &[Primitive], shapes: &[Shape]) -> u32 {
+    /// Packs the primitives `slots` of one leaf into leaf blocks of eight; returns its
+    /// child reference.
+    fn add_leaf(&mut self, slots: &[u32], prims: &[Primitive], shapes: &[Shape]) -> u32 {
         let first_block = self.leaves.len() as u32;
-        let slots: Vec<u32> = (node.first_index..node.first_index + node.prim_count).collect();
         let chunks: Vec<&[u32]> = slots.chunks(8).collect();
         for (k, chunk) in chunks.iter().enumerate() {
             let mut block = Leaf8 {
@@ -275,6 +283,58 @@ impl Wide8 {
     pub(super) fn is_empty(&self) -> bool {
         self.root == EMPTY
     }
+}
+
+/// Which nodes of a binary BVH become one leaf block: its leaves, and every inner node of at
+/// most eight primitives whose children both do and whose box is no larger than the larger
+/// child's (the two triangles of a quad, say): splitting such a node culls nothing, and
+/// testing its triangles at once costs one block test instead of two. Merging more (every
+/// subtree of up to eight primitives, or by a surface-area cost) made the Cornell box slower:
+/// larger leaves are entered by more rays. Children before parents, without recursion
+/// (degenerate input makes deep trees).
+fn merged_subtrees(nodes: &[Bvh2Node]) -> Vec<bool> {
+    let mut count = vec![0u32; nodes.len()];
+    let mut merge = vec![false; nodes.len()];
+    let mut order = Vec::with_capacity(nodes.len());
+    let mut stack = vec![0usize];
+    while let Some(n) = stack.pop() {
+        order.push(n);
+        if nodes[n].prim_count == 0 {
+            let f = nodes[n].first_index as usize;
+            stack.extend([f, f + 1]);
+        }
+    }
+    for &n in order.iter().rev() {
+        if nodes[n].prim_count > 0 {
+            count[n] = nodes[n].prim_count;
+            merge[n] = true;
+        } else {
+            let f = nodes[n].first_index as usize;
+            count[n] = count[f].saturating_add(count[f + 1]);
+            let larger = nodes[f].aabb.half_area().max(nodes[f + 1].aabb.half_area());
+            merge[n] = count[n] <= 8
+                && merge[f]
+                && merge[f + 1]
+                && nodes[n].aabb.half_area() <= larger * (1.0 + 1e-4);
+        }
+    }
+    merge
+}
+
+/// The primitive slots of every leaf under binary node `n`.
+fn leaf_slots(nodes: &[Bvh2Node], n: usize) -> Vec<u32> {
+    let mut slots = Vec::new();
+    let mut stack = vec![n];
+    while let Some(n) = stack.pop() {
+        let node = &nodes[n];
+        if node.prim_count > 0 {
+            slots.extend(node.first_index..node.first_index + node.prim_count);
+        } else {
+            let f = node.first_index as usize;
+            stack.extend([f, f + 1]);
+        }
+    }
+    slots
 }
 
 /// [`RayShear`] with its permuted origin and shear splatted over eight lanes.
