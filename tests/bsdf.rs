@@ -1503,3 +1503,74 @@ fn principled_sheen_is_off_where_its_weight_is_not_positive() {
         assert!(lit > 40, "metallic {metallic}: {lit} of 48 pairs lit");
     }
 }
+
+/// Every colour parameter a BSDF reads from a texture reaches the BSDF. The material layer
+/// builds a BSDF with its constant parameters and patches the textured ones at each shading
+/// point (`Bsdf::set_param`, one match arm per BSDF and parameter): a parameter given by a
+/// uniform checkerboard must give the BSDF that the same value given as a constant gives
+/// (eval, pdf and samples bit for bit), and one that differs from the BSDF without the
+/// parameter (Mitsuba's default), so that the value is seen to matter.
+#[test]
+fn textured_bsdf_parameters_reach_the_bsdf() {
+    // (BSDF, parameter, other parameters of all three variants: a conductor's eta and k
+    // count only together, as its default is a perfect mirror).
+    let cases = [
+        ("diffuse", "reflectance", ""),
+        ("conductor", "eta", r#"<rgb name="k" value="3"/>"#),
+        ("conductor", "k", r#"<rgb name="eta" value="1.5"/>"#),
+        ("conductor", "specular_reflectance", ""),
+        ("roughconductor", "eta", r#"<rgb name="k" value="3"/>"#),
+        ("roughconductor", "k", r#"<rgb name="eta" value="1.5"/>"#),
+        ("roughconductor", "specular_reflectance", ""),
+        ("dielectric", "specular_reflectance", ""),
+        ("dielectric", "specular_transmittance", ""),
+        ("thindielectric", "specular_reflectance", ""),
+        ("thindielectric", "specular_transmittance", ""),
+        ("roughdielectric", "specular_reflectance", ""),
+        ("roughdielectric", "specular_transmittance", ""),
+        ("plastic", "diffuse_reflectance", ""),
+        ("plastic", "specular_reflectance", ""),
+        ("roughplastic", "diffuse_reflectance", ""),
+        ("roughplastic", "specular_reflectance", ""),
+        ("phong", "diffuse_reflectance", ""),
+        ("phong", "specular_reflectance", ""),
+    ];
+    let value = "0.2, 0.3, 0.4";
+    // eval and pdf towards a few directions on both sides, and samples of every lobe.
+    let probe = |b: &penumbra::material::ShadingBsdf| {
+        let wi = Vec3::new(0.3, -0.2, 0.9).normalize();
+        let mut out = Vec::new();
+        for k in 0..6 {
+            let a = k as f32 / 6.0;
+            let side = if k % 2 == 0 { 1.0 } else { -1.0 };
+            let wo = Vec3::new(a - 0.4, 0.2 - a * 0.5, 0.7 * side).normalize();
+            out.extend(b.eval(wi, wo).to_array());
+            out.push(b.pdf(wi, wo));
+        }
+        for u1 in [0.02, 0.3, 0.6, 0.98] {
+            match b.sample(wi, u1, Vec2::new(0.3, 0.7)) {
+                Some(s) => {
+                    out.extend(s.wo.to_array());
+                    out.extend(s.weight.to_array());
+                    out.push(s.pdf);
+                }
+                None => out.push(-1.0),
+            }
+        }
+        out
+    };
+    for (bsdf, param, other) in cases {
+        let textured = bsdf_from_xml(&format!(
+            r#"<bsdf type="{bsdf}">{other}<texture type="checkerboard" name="{param}">
+                <rgb name="color0" value="{value}"/><rgb name="color1" value="{value}"/>
+            </texture></bsdf>"#
+        ));
+        let constant = bsdf_from_xml(&format!(
+            r#"<bsdf type="{bsdf}">{other}<rgb name="{param}" value="{value}"/></bsdf>"#
+        ));
+        let default = bsdf_from_xml(&format!(r#"<bsdf type="{bsdf}">{other}</bsdf>"#));
+        let p = probe(&textured);
+        assert_eq!(p, probe(&constant), "{bsdf} {param}: textured vs constant");
+        assert_ne!(p, probe(&default), "{bsdf} {param}: the value must matter");
+    }
+}

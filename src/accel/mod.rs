@@ -862,6 +862,153 @@ mod tests {
         }
     }
 
+    /// Rotated instances of a unit cube: their world bounds come from all eight transformed
+    /// corners of the group's box, so rays aimed at points all over the cubes' surfaces (the
+    /// corners that end up outermost included) hit exactly where brute force in the group's
+    /// space does, in both layouts.
+    #[test]
+    fn rotated_instance_bounds_hold_the_whole_group() {
+        let corners: Vec<Vec3> = (0..8)
+            .map(|k| Vec3::new((k & 1) as f32, ((k >> 1) & 1) as f32, ((k >> 2) & 1) as f32))
+            .collect();
+        // Two triangles per face (vertex k has coordinates from the bits of k).
+        let faces = [
+            [0, 1, 3, 2],
+            [4, 5, 7, 6],
+            [0, 1, 5, 4],
+            [2, 3, 7, 6],
+            [0, 2, 6, 4],
+            [1, 3, 7, 5],
+        ];
+        let triangles = faces
+            .iter()
+            .flat_map(|f| [[f[0], f[1], f[2]], [f[0], f[2], f[3]]])
+            .collect();
+        let cube = Mesh::new(corners, None, None, triangles, false);
+        let shapes = vec![shape(ShapeGeometry::Mesh(cube))];
+        let mut rng = rand_pcg::Pcg32::seed_from_u64(5);
+        // Rotations by random unit quaternions: each corner is outermost along some axis in
+        // some of them.
+        let rotations: Vec<DMat4> = (0..8)
+            .map(|_| {
+                let q = glam::DQuat::from_xyzw(
+                    rng.random_range(-1.0..1.0),
+                    rng.random_range(-1.0..1.0),
+                    rng.random_range(-1.0..1.0),
+                    rng.random_range(-1.0..1.0),
+                );
+                DMat4::from_quat(q.normalize())
+            })
+            .collect();
+        // Sixteen instances on a grid, so that the top-level tree has inner nodes whose
+        // boxes are the instances' bounds.
+        let placements: Vec<DMat4> = (0..16)
+            .map(|i| {
+                let offset = DVec3::new((i % 4) as f64 * 3.0, (i / 4) as f64 * 3.0, 0.0);
+                DMat4::from_translation(offset) * rotations[i % 8]
+            })
+            .collect();
+        let instances: Vec<Instance> = placements
+            .iter()
+            .map(|&m| Instance::new(0, m).expect("invertible"))
+            .collect();
+        for layout in [Layout::Wide4, Layout::Wide8] {
+            let group = Group {
+                accel: Accel::build_in_layout(&shapes, 0..1, vec![], vec![], layout),
+            };
+            let accel =
+                Accel::build_in_layout(&shapes, 1..1, instances.clone(), vec![group], layout);
+            let mut hits = 0;
+            for i in 0..20000 {
+                // A point on a random face of a random instance, in world space.
+                let to_world = placements[rng.random_range(0..16usize)];
+                let (axis, side) = (rng.random_range(0..3usize), rng.random_range(0..2) as f64);
+                let mut q = DVec3::new(rng.random(), rng.random(), rng.random());
+                q[axis] = side;
+                let target = to_world.transform_point3(q).as_vec3();
+                let dir = Vec3::new(
+                    rng.random_range(-1.0..1.0),
+                    rng.random_range(-1.0..1.0),
+                    rng.random_range(-1.0..1.0),
+                );
+                let ray = Ray::new(target + dir * 4.0, -dir, f32::INFINITY);
+                let expected = instances
+                    .iter()
+                    .filter_map(|inst| brute_force(&shapes, &inst.local_ray(&ray)))
+                    .min_by(f32::total_cmp);
+                let got = accel.intersect(&ray, &shapes).map(|h| h.t);
+                assert_eq!(expected, got, "{layout:?} ray {i}");
+                hits += expected.is_some() as u32;
+            }
+            assert!(hits > 15000, "{layout:?}: {hits} hits");
+        }
+    }
+
+    /// Rays from far away (|o| ≈ 1e4) aimed at points on small flat triangles near the
+    /// origin: the boxes are a few ulps thick, and the slab test's distances carry an error of
+    /// about ε |o| / |d|, far above the boxes' padding; only the far distance's widening by
+    /// 1 + 2γ(3) keeps the boxes the rays hit from being culled. Both layouts must find
+    /// every hit brute force finds.
+    #[test]
+    fn far_rays_hit_thin_boxes() {
+        let mut rng = rand_pcg::Pcg32::seed_from_u64(3);
+        let mut positions = Vec::new();
+        // One triangle per cell of an 8 × 8 grid, so that none overlap: of two coplanar
+        // triangles the BVH may keep either hit (their distances differ in the last ulp,
+        // within the slab test's rounding of entry distances).
+        for cell in 0..64 {
+            let c = Vec3::new((cell % 8) as f32 - 3.5, (cell / 8) as f32 - 3.5, 0.0) * 0.25;
+            let mut corner = || {
+                c + Vec3::new(
+                    rng.random_range(-0.1..0.1),
+                    rng.random_range(-0.1..0.1),
+                    0.0,
+                )
+            };
+            positions.extend([corner(), corner(), corner()]);
+        }
+        let flat = Mesh::new(
+            positions.clone(),
+            None,
+            None,
+            (0..64u32).map(|i| [3 * i, 3 * i + 1, 3 * i + 2]).collect(),
+            false,
+        );
+        let shapes = vec![shape(ShapeGeometry::Mesh(flat))];
+        for layout in [Layout::Wide4, Layout::Wide8] {
+            let accel = Accel::build_with_layout(&shapes, layout);
+            assert!(accel.layout() == layout || Layout::best() == Layout::Wide4);
+            let mut hits = 0;
+            for i in 0..20000 {
+                // A point inside a random triangle, seen from a random far origin.
+                let k = rng.random_range(0..64usize);
+                let (b1, b2): (f32, f32) = (rng.random_range(0.0..1.0), rng.random_range(0.0..1.0));
+                let (b1, b2) = if b1 + b2 > 1.0 {
+                    (1.0 - b1, 1.0 - b2)
+                } else {
+                    (b1, b2)
+                };
+                let p = positions[3 * k] * (1.0 - b1 - b2)
+                    + positions[3 * k + 1] * b1
+                    + positions[3 * k + 2] * b2;
+                let o = Vec3::new(
+                    rng.random_range(-1.0..1.0),
+                    rng.random_range(-1.0..1.0),
+                    rng.random_range(0.2..1.0),
+                )
+                .normalize()
+                    * 1e4;
+                let ray = Ray::new(o, p - o, f32::INFINITY);
+                let expected = brute_force(&shapes, &ray);
+                let got = accel.intersect(&ray, &shapes).map(|h| h.t);
+                assert_eq!(expected, got, "{layout:?} ray {i}");
+                assert_eq!(expected.is_some(), accel.occluded(&ray, &shapes));
+                hits += expected.is_some() as u32;
+            }
+            assert!(hits > 15000, "{layout:?}: {hits} hits");
+        }
+    }
+
     /// Closest hits and occlusion from the 4-wide and the 8-wide BVH equal brute force
     /// exactly, on a soup of
     /// small and large (box-spanning) triangles with spheres, and on a degenerate pile of
