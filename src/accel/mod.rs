@@ -318,6 +318,82 @@ fn open_children(
     children
 }
 
+/// Records the triangle hits of one leaf block (lanes `mask`, with distances `t` and
+/// barycentrics `b1`, `b2`, primitives `slot`): the nearest below `tmax` in `best`, or with
+/// `any` the first one. Returns the new tmax and whether an occlusion query is answered.
+#[allow(clippy::too_many_arguments)]
+#[inline(always)]
+fn record_triangle_hits<const N: usize>(
+    mut mask: u32,
+    t: &[f32; N],
+    b1: &[f32; N],
+    b2: &[f32; N],
+    slot: &[u32; N],
+    mut tmax: f32,
+    best: &mut Option<Hit>,
+    any: bool,
+) -> (f32, bool) {
+    if any && mask != 0 {
+        // Occlusion: any hit will do.
+        let lane = mask.trailing_zeros() as usize;
+        *best = Some(Hit {
+            prim: slot[lane],
+            t: t[lane],
+            b1: b1[lane],
+            b2: b2[lane],
+            instance: NO_INSTANCE,
+        });
+        return (tmax, true);
+    }
+    while mask != 0 {
+        let lane = mask.trailing_zeros() as usize;
+        mask &= mask - 1;
+        if t[lane] < tmax {
+            tmax = t[lane];
+            *best = Some(Hit {
+                prim: slot[lane],
+                t: tmax,
+                b1: b1[lane],
+                b2: b2[lane],
+                instance: NO_INSTANCE,
+            });
+        }
+    }
+    (tmax, false)
+}
+
+/// Pushes the entered children of a node (lanes `mask`, at least two, with entry distances
+/// `t_near`) onto the stack, far to near, all but the nearest, and returns that one to
+/// descend into. At most `N` of them: insertion sort.
+#[inline(always)]
+fn push_entered<const N: usize>(
+    mut mask: u32,
+    t_near: &[f32; N],
+    child: &[u32; N],
+    stack: &mut [MaybeUninit<(u32, f32)>],
+    sp: &mut usize,
+) -> u32 {
+    let mut order = [(0u32, 0.0f32); N];
+    let mut count = 0;
+    while mask != 0 {
+        let lane = mask.trailing_zeros() as usize;
+        mask &= mask - 1;
+        let entry = (child[lane], t_near[lane]);
+        let mut j = count;
+        while j > 0 && order[j - 1].1 < entry.1 {
+            order[j] = order[j - 1];
+            j -= 1;
+        }
+        order[j] = entry;
+        count += 1;
+    }
+    for &entry in &order[..count - 1] {
+        stack[*sp] = MaybeUninit::new(entry);
+        *sp += 1;
+    }
+    order[count - 1].0
+}
+
 impl Accel {
     /// Collects every primitive of `shapes` and builds the hierarchy.
     /// Whether the scene instances shape groups (two-level hierarchy).
@@ -570,6 +646,35 @@ impl Accel {
         }
     }
 
+    /// Tests the analytic primitives and instances of one leaf block (lanes `mask` of
+    /// `slot`), nearest hit into `best`. Returns the new tmax and whether an occlusion query
+    /// is answered.
+    #[allow(clippy::too_many_arguments)]
+    #[inline(always)]
+    fn test_analytic_lanes(
+        &self,
+        mut mask: u32,
+        slot: &[u32],
+        ray: &Ray,
+        shapes: &[Shape],
+        mut tmax: f32,
+        best: &mut Option<Hit>,
+        any: bool,
+    ) -> (f32, bool) {
+        while mask != 0 {
+            let lane = mask.trailing_zeros() as usize;
+            mask &= mask - 1;
+            if let Some(hit) = self.test_analytic(slot[lane], ray, tmax, shapes, any) {
+                tmax = hit.t;
+                *best = Some(hit);
+                if any {
+                    return (tmax, true);
+                }
+            }
+        }
+        (tmax, false)
+    }
+
     /// Tests the leaf blocks starting at `first`; updates `best` and returns the new tmax.
     /// With `any`, returns at the first block with a hit (occlusion).
     #[inline(always)]
@@ -585,49 +690,28 @@ impl Accel {
         loop {
             let block = &self.leaves[k];
             if block.tri_mask != 0 {
-                let (mut mask, t, b1, b2) =
+                let (mask, t, b1, b2) =
                     intersect_triangle4(&ctx.shear, &block.tri, tmax, block.tri_mask);
                 let (t, b1, b2) = (t.to_array(), b1.to_array(), b2.to_array());
-                if any && mask != 0 {
-                    // Occlusion: any hit will do.
-                    let lane = mask.trailing_zeros() as usize;
-                    *best = Some(Hit {
-                        prim: block.slot[lane],
-                        t: t[lane],
-                        b1: b1[lane],
-                        b2: b2[lane],
-                        instance: NO_INSTANCE,
-                    });
+                let done;
+                (tmax, done) =
+                    record_triangle_hits(mask, &t, &b1, &b2, &block.slot, tmax, best, any);
+                if done {
                     return tmax;
                 }
-                while mask != 0 {
-                    let lane = mask.trailing_zeros() as usize;
-                    mask &= mask - 1;
-                    if t[lane] < tmax {
-                        tmax = t[lane];
-                        *best = Some(Hit {
-                            prim: block.slot[lane],
-                            t: tmax,
-                            b1: b1[lane],
-                            b2: b2[lane],
-                            instance: NO_INSTANCE,
-                        });
-                    }
-                }
             }
-            let mut mask = block.analytic_mask;
-            while mask != 0 {
-                let lane = mask.trailing_zeros() as usize;
-                mask &= mask - 1;
-                if let Some(hit) =
-                    self.test_analytic(block.slot[lane], ctx.ray, tmax, ctx.shapes, any)
-                {
-                    tmax = hit.t;
-                    *best = Some(hit);
-                    if any {
-                        return tmax;
-                    }
-                }
+            let done;
+            (tmax, done) = self.test_analytic_lanes(
+                block.analytic_mask,
+                &block.slot,
+                ctx.ray,
+                ctx.shapes,
+                tmax,
+                best,
+                any,
+            );
+            if done {
+                return tmax;
             }
             if !block.more {
                 return tmax;
@@ -668,7 +752,7 @@ impl Accel {
             // Descend through inner nodes, nearest child first.
             while node & LEAF == 0 {
                 let n = &self.nodes[node as usize];
-                let (mut mask, t_near) = boxes.test(n, tmax);
+                let (mask, t_near) = boxes.test(n, tmax);
                 if mask == 0 {
                     node = EMPTY;
                     break;
@@ -678,29 +762,7 @@ impl Accel {
                     node = n.child[mask.trailing_zeros() as usize];
                     continue;
                 }
-                let t_near = t_near.to_array();
-                // Order the entered children by distance (at most four: insertion sort),
-                // far to near.
-                let mut order = [(0u32, 0.0f32); 4];
-                let mut count = 0;
-                while mask != 0 {
-                    let lane = mask.trailing_zeros() as usize;
-                    mask &= mask - 1;
-                    let entry = (n.child[lane], t_near[lane]);
-                    let mut j = count;
-                    while j > 0 && order[j - 1].1 < entry.1 {
-                        order[j] = order[j - 1];
-                        j -= 1;
-                    }
-                    order[j] = entry;
-                    count += 1;
-                }
-                // order is far → near: push all but the nearest, continue with it.
-                for &entry in &order[..count - 1] {
-                    stack[sp] = MaybeUninit::new(entry);
-                    sp += 1;
-                }
-                node = order[count - 1].0;
+                node = push_entered(mask, &t_near.to_array(), &n.child, stack, &mut sp);
             }
             if node == EMPTY {
                 continue;

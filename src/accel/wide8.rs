@@ -16,7 +16,7 @@
 //! layouts differ only in the order in which they visit children, which decides which of two
 //! hits at exactly the same distance is kept.
 
-use super::{Accel, Hit, Primitive, EMPTY, LEAF, NO_INSTANCE};
+use super::{push_entered, record_triangle_hits, Accel, Hit, Primitive, EMPTY, LEAF};
 use crate::geometry::{gamma, Ray};
 use crate::shape::mesh::{intersect_triangle, RayShear};
 use crate::shape::Shape;
@@ -545,48 +545,27 @@ impl Accel {
         loop {
             let block = &wide.leaves[k];
             if block.tri_mask != 0 {
-                let (mut mask, t, b1, b2) =
+                let (mask, t, b1, b2) =
                     intersect_triangle8(&ctx.shear, block, tmax, block.tri_mask);
-                if any && mask != 0 {
-                    // Occlusion: any hit will do.
-                    let lane = mask.trailing_zeros() as usize;
-                    *best = Some(Hit {
-                        prim: block.slot[lane],
-                        t: t[lane],
-                        b1: b1[lane],
-                        b2: b2[lane],
-                        instance: NO_INSTANCE,
-                    });
+                let done;
+                (tmax, done) =
+                    record_triangle_hits(mask, &t, &b1, &b2, &block.slot, tmax, best, any);
+                if done {
                     return tmax;
                 }
-                while mask != 0 {
-                    let lane = mask.trailing_zeros() as usize;
-                    mask &= mask - 1;
-                    if t[lane] < tmax {
-                        tmax = t[lane];
-                        *best = Some(Hit {
-                            prim: block.slot[lane],
-                            t: tmax,
-                            b1: b1[lane],
-                            b2: b2[lane],
-                            instance: NO_INSTANCE,
-                        });
-                    }
-                }
             }
-            let mut mask = block.analytic_mask;
-            while mask != 0 {
-                let lane = mask.trailing_zeros() as usize;
-                mask &= mask - 1;
-                if let Some(hit) =
-                    self.test_analytic(block.slot[lane], ctx.ray, tmax, ctx.shapes, any)
-                {
-                    tmax = hit.t;
-                    *best = Some(hit);
-                    if any {
-                        return tmax;
-                    }
-                }
+            let done;
+            (tmax, done) = self.test_analytic_lanes(
+                block.analytic_mask,
+                &block.slot,
+                ctx.ray,
+                ctx.shapes,
+                tmax,
+                best,
+                any,
+            );
+            if done {
+                return tmax;
             }
             if !block.more {
                 return tmax;
@@ -628,7 +607,7 @@ impl Accel {
             // Descend through inner nodes, nearest child first.
             while node & LEAF == 0 {
                 let n = &wide.nodes[node as usize];
-                let (mut mask, t_near) = boxes.test(n, tmax);
+                let (mask, t_near) = boxes.test(n, tmax);
                 if mask == 0 {
                     node = EMPTY;
                     break;
@@ -638,28 +617,7 @@ impl Accel {
                     node = n.child[mask.trailing_zeros() as usize];
                     continue;
                 }
-                // Order the entered children by distance (at most eight: insertion sort),
-                // far to near.
-                let mut order = [(0u32, 0.0f32); 8];
-                let mut count = 0;
-                while mask != 0 {
-                    let lane = mask.trailing_zeros() as usize;
-                    mask &= mask - 1;
-                    let entry = (n.child[lane], t_near[lane]);
-                    let mut j = count;
-                    while j > 0 && order[j - 1].1 < entry.1 {
-                        order[j] = order[j - 1];
-                        j -= 1;
-                    }
-                    order[j] = entry;
-                    count += 1;
-                }
-                // order is far → near: push all but the nearest, continue with it.
-                for &entry in &order[..count - 1] {
-                    stack[sp] = MaybeUninit::new(entry);
-                    sp += 1;
-                }
-                node = order[count - 1].0;
+                node = push_entered(mask, &t_near, &n.child, stack, &mut sp);
             }
             if node == EMPTY {
                 continue;
