@@ -289,8 +289,7 @@ pub struct Accel {
 
 /// The children a node of `width` takes from binary node `b`: its two children, then
 /// repeatedly the two children of the inner one of largest surface area, until there are
-/// `width` or only leaves are left.
-/// `is_leaf(c)` says which binary nodes stay whole (become a leaf).
+/// `width` or only nodes that `is_leaf` says stay whole (become a leaf) are left.
 fn open_children(
     nodes: &[obvhs::bvh2::node::Bvh2Node],
     b: usize,
@@ -426,7 +425,7 @@ impl Accel {
     }
 
     /// Stack entries one traversal of this hierarchy can need.
-    #[cfg(test)]
+    #[inline]
     fn stack_entries(&self) -> usize {
         #[cfg(target_arch = "x86_64")]
         if let Some(w) = &self.wide8 {
@@ -775,33 +774,41 @@ impl Accel {
         best
     }
 
+    /// Traces `ray` with a stack of the size this hierarchy needs: on the thread's stack
+    /// when it fits in [`STACK`] entries, else on the heap (degenerate trees).
     #[inline]
     fn run(&self, ray: &Ray, shapes: &[Shape], any: bool) -> Option<Hit> {
+        let size = self.stack_entries();
+        if size <= STACK {
+            let mut stack = [MaybeUninit::uninit(); STACK];
+            self.walk(ray, shapes, any, &mut stack)
+        } else {
+            let mut stack = vec![MaybeUninit::uninit(); size];
+            self.walk(ray, shapes, any, &mut stack)
+        }
+    }
+
+    /// The traversal of this hierarchy's layout.
+    #[inline(always)]
+    fn walk(
+        &self,
+        ray: &Ray,
+        shapes: &[Shape],
+        any: bool,
+        stack: &mut [MaybeUninit<(u32, f32)>],
+    ) -> Option<Hit> {
         #[cfg(target_arch = "x86_64")]
         if let Some(wide) = &self.wide8 {
             if wide.is_empty() {
                 return None;
             }
-            // SAFETY (all three calls): a `Wide8` is only built where `wide8::supported()`
-            // found AVX2.
-            return if wide.stack_size <= STACK {
-                let mut stack = [MaybeUninit::uninit(); STACK];
-                unsafe { self.traverse8(wide, ray, shapes, any, &mut stack) }
-            } else {
-                let mut stack = vec![MaybeUninit::uninit(); wide.stack_size];
-                unsafe { self.traverse8(wide, ray, shapes, any, &mut stack) }
-            };
+            // SAFETY: a `Wide8` is only built where `wide8::supported()` found AVX2.
+            return unsafe { self.traverse8(wide, ray, shapes, any, stack) };
         }
         if self.root == EMPTY {
             return None;
         }
-        if self.stack_size <= STACK {
-            let mut stack = [MaybeUninit::uninit(); STACK];
-            self.traverse(ray, shapes, any, &mut stack)
-        } else {
-            let mut stack = vec![MaybeUninit::uninit(); self.stack_size];
-            self.traverse(ray, shapes, any, &mut stack)
-        }
+        self.traverse(ray, shapes, any, stack)
     }
 
     /// The closest hit with 0 < t < ray.tmax.
@@ -1072,11 +1079,10 @@ mod tests {
     }
 
     /// Closest hits and occlusion from the 4-wide and the 8-wide BVH equal brute force
-    /// exactly, on a soup of
-    /// small and large (box-spanning) triangles with spheres, and on a degenerate pile of
-    /// identical triangles whose tree is deep enough for the heap-allocated stack, and on
-    /// quads (two triangles with one box, merged into one leaf block); the two layouts'
-    /// barycentrics agree bit for bit.
+    /// exactly, on a soup of small and large (box-spanning) triangles with spheres, on a
+    /// degenerate pile of identical triangles whose tree is deep enough for the
+    /// heap-allocated stack, and on quads (two triangles with one box, merged into one leaf
+    /// block); the two layouts' barycentrics agree bit for bit.
     #[test]
     fn wide_bvh_matches_brute_force() {
         let mut rng = rand_pcg::Pcg32::seed_from_u64(8);
