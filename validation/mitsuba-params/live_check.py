@@ -25,6 +25,7 @@ folder, written <tmp> in the outcomes.
 import json
 import os
 import re
+import shutil
 import struct
 import sys
 import tempfile
@@ -374,6 +375,7 @@ def main():
         key = plugin["kind"] + "/" + plugin["name"]
         out["plugins"][key] = check_plugin(plugin, tmp)
         print("checked", key, file=sys.stderr)
+    shutil.rmtree(tmp)
     json.dump(out, sys.stdout)
 
 
