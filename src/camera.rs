@@ -9,6 +9,11 @@
 //! which is therefore imaged sharply.
 //!
 //! Mitsuba's `orthographic` sensor is [`OrthographicCamera`]; [`Camera`] holds either kind.
+//!
+//! Film positions handed to the cameras are relative to the rendered window ([`FilmWindow`]):
+//! Mitsuba's crop window of the film (`crop_offset_x`/`_y`, `crop_width`/`_height`) and the
+//! perspective sensor's principal point shift (`principal_point_offset_x`/`_y`). Without them
+//! the window is the whole film and every position maps to itself.
 
 use crate::geometry::Ray;
 use crate::sampling::square_to_uniform_disk_concentric;
@@ -50,6 +55,62 @@ pub fn fov_x_degrees(fov: f64, axis: FovAxis, aspect: f64) -> f64 {
     }
 }
 
+/// The rendered part of the film (Mitsuba's crop window) and the principal point's shift,
+/// in fractions of the whole film (x right, y down).
+///
+/// A position `s` ∈ [0,1]² of the window is the position `offset + scale · s + shift` of the
+/// whole film, as in Mitsuba's `perspective_projection` (crop) and `sample_ray` (principal
+/// point: `principal_point_offset` is added to the position in units of the whole film).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct FilmWindow {
+    /// `crop_offset / size`.
+    pub offset: DVec2,
+    /// `crop_size / size`.
+    pub scale: DVec2,
+    /// `principal_point_offset` (perspective sensors only; zero elsewhere).
+    pub shift: DVec2,
+}
+
+impl FilmWindow {
+    /// The whole film, no shift: every position maps to itself, bit for bit.
+    pub const FULL: FilmWindow = FilmWindow {
+        offset: DVec2::ZERO,
+        scale: DVec2::ONE,
+        shift: DVec2::ZERO,
+    };
+
+    /// The window of `crop_size` pixels at `crop_offset` of a film of `size` pixels, with
+    /// the principal point shifted by `shift` (fractions of the film).
+    pub fn new(
+        size: (u32, u32),
+        crop_offset: (u32, u32),
+        crop_size: (u32, u32),
+        shift: DVec2,
+    ) -> Self {
+        let size = DVec2::new(size.0 as f64, size.1 as f64);
+        FilmWindow {
+            offset: DVec2::new(crop_offset.0 as f64, crop_offset.1 as f64) / size,
+            scale: DVec2::new(crop_size.0 as f64, crop_size.1 as f64) / size,
+            shift,
+        }
+    }
+
+    /// The position on the whole film of window position `s`.
+    pub fn to_film(&self, s: Vec2) -> DVec2 {
+        self.offset + self.scale * s.as_dvec2() + self.shift
+    }
+
+    /// The window position of film position `f` (the inverse of [`FilmWindow::to_film`]).
+    pub fn from_film(&self, f: DVec2) -> DVec2 {
+        (f - self.shift - self.offset) / self.scale
+    }
+
+    /// The window's share of the film's area.
+    pub fn area_fraction(&self) -> f64 {
+        self.scale.x * self.scale.y
+    }
+}
+
 #[derive(Clone, Debug)]
 pub struct PerspectiveCamera {
     origin: Vec3,
@@ -66,6 +127,8 @@ pub struct PerspectiveCamera {
     /// World to camera space (the inverse of `to_world`), for connecting points to the
     /// pinhole ([`PerspectiveCamera::sample_direction`]).
     to_local: DMat4,
+    /// The rendered window of the film.
+    window: FilmWindow,
 }
 
 /// A connection from a point in the scene to the camera's pinhole (Mitsuba's
@@ -107,7 +170,14 @@ impl PerspectiveCamera {
             far_clip: far_clip as f32,
             lens: None,
             to_local: to_world.inverse(),
+            window: FilmWindow::FULL,
         }
+    }
+
+    /// The same camera rendering `window` of its film (crop window, principal point).
+    pub fn with_window(mut self, window: FilmWindow) -> Self {
+        self.window = window;
+        self
     }
 
     /// The same camera with a thin lens (Mitsuba's `thinlens`).
@@ -129,8 +199,9 @@ impl PerspectiveCamera {
         let Some(lens) = self.lens else {
             return self.generate_ray(s);
         };
-        let x = (1.0 - 2.0 * s.x as f64) * self.tan_half_x;
-        let y = (1.0 - 2.0 * s.y as f64) * self.tan_half_x / self.aspect;
+        let f = self.window.to_film(s);
+        let x = (1.0 - 2.0 * f.x) * self.tan_half_x;
+        let y = (1.0 - 2.0 * f.y) * self.tan_half_x / self.aspect;
         // The pinhole ray meets the plane of focus at (x, y, 1) · focus_distance.
         let focus = DVec3::new(x, y, 1.0) * lens.focus_distance;
         let a = square_to_uniform_disk_concentric(u).as_dvec2() * lens.aperture_radius;
@@ -168,10 +239,10 @@ impl PerspectiveCamera {
             return None;
         }
         let (x, y) = (local.x / local.z, local.y / local.z);
-        let film = DVec2::new(
+        let film = self.window.from_film(DVec2::new(
             0.5 * (1.0 - x / self.tan_half_x),
             0.5 * (1.0 - y * self.aspect / self.tan_half_x),
-        );
+        ));
         if !(film.cmpge(DVec2::ZERO).all() && film.cmple(DVec2::ONE).all()) {
             return None;
         }
@@ -181,7 +252,9 @@ impl PerspectiveCamera {
             return None;
         }
         let cos = local.z / local.length();
-        let area = 4.0 * self.tan_half_x * self.tan_half_x / self.aspect;
+        // The window's part of the image plane (Mitsuba's `m_image_rect` is the crop's).
+        let area =
+            4.0 * self.tan_half_x * self.tan_half_x / self.aspect * self.window.area_fraction();
         let we = 1.0 / (area * cos * cos * cos);
         Some(SensorSample {
             film: film.as_vec2(),
@@ -194,8 +267,9 @@ impl PerspectiveCamera {
 
     /// The local (camera-space) unit direction through film position `s` ∈ [0,1]².
     pub fn local_direction(&self, s: Vec2) -> Vec3 {
-        let x = (1.0 - 2.0 * s.x as f64) * self.tan_half_x;
-        let y = (1.0 - 2.0 * s.y as f64) * self.tan_half_x / self.aspect;
+        let f = self.window.to_film(s);
+        let x = (1.0 - 2.0 * f.x) * self.tan_half_x;
+        let y = (1.0 - 2.0 * f.y) * self.tan_half_x / self.aspect;
         DVec3::new(x, y, 1.0).normalize().as_vec3()
     }
 
@@ -239,6 +313,8 @@ pub struct OrthographicCamera {
     d: Vec3,
     aspect: f64,
     tmax: f32,
+    /// The rendered window of the film (crop window; no principal point shift).
+    window: FilmWindow,
 }
 
 impl OrthographicCamera {
@@ -253,7 +329,14 @@ impl OrthographicCamera {
             d: to_world.transform_vector3(DVec3::Z).normalize().as_vec3(),
             aspect,
             tmax: far32 - near32,
+            window: FilmWindow::FULL,
         }
+    }
+
+    /// The same camera rendering `window` of its film (crop window).
+    pub fn with_window(mut self, window: FilmWindow) -> Self {
+        self.window = window;
+        self
     }
 
     /// Always false: an orthographic camera has no aperture.
@@ -263,8 +346,9 @@ impl OrthographicCamera {
 
     /// The primary ray through film position `s` ∈ [0,1]² (x right, y down).
     pub fn generate_ray(&self, s: Vec2) -> Ray {
-        let lx = 1.0 - 2.0 * s.x as f64;
-        let ly = (1.0 - 2.0 * s.y as f64) / self.aspect;
+        let f = self.window.to_film(s);
+        let lx = 1.0 - 2.0 * f.x;
+        let ly = (1.0 - 2.0 * f.y) / self.aspect;
         let o = self.centre + self.x * lx + self.y * ly;
         Ray::new(o.as_vec3(), self.d, self.tmax)
     }

@@ -152,6 +152,10 @@ struct RenderArgs {
     /// hide_emitters.
     #[arg(long, value_name = "NAME")]
     integrator: Option<String>,
+    /// Render the scene's sensor number N (from 0, in file order) instead of the first, which
+    /// is the one Mitsuba renders.
+    #[arg(long, value_name = "N")]
+    sensor: Option<usize>,
     /// Worker threads (default: one per core).
     #[arg(long)]
     threads: Option<usize>,
@@ -279,7 +283,10 @@ fn run_render(args: RenderArgs) -> Result<()> {
         .iter()
         .map(|d| parse_define(d))
         .collect::<Result<Vec<_>>>()?;
-    let desc = Scene::load_description(&args.scene, &defines)?;
+    let mut desc = Scene::load_description(&args.scene, &defines)?;
+    if let Some(n) = args.sensor {
+        desc.select_sensor(n)?;
+    }
     let scene_hash = progressive::scene_hash(&desc);
     let mut scene = penumbra::scene::build::build(&desc)?;
     if let Some(kind) = &args.integrator {
@@ -676,13 +683,13 @@ fn run_converge(args: ConvergeArgs) -> Result<()> {
         .collect();
     let r = &reference.image;
     for v in &variants {
-        let film = &v.description.sensor.film;
-        if (film.width as usize, film.height as usize) != (r.width, r.height) {
+        let (width, height) = v.description.sensor.film.crop_size;
+        if (width as usize, height as usize) != (r.width, r.height) {
             bail!(
                 "the scene renders {}x{}, the reference is {}x{} (set the scene's resolution \
                  with -D, e.g. -D res={})",
-                film.width,
-                film.height,
+                width,
+                height,
                 r.width,
                 r.height,
                 r.width

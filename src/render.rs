@@ -77,14 +77,10 @@ fn render_tile(
     let sampler = settings.sampler.unwrap_or(scene.sampler);
     for y in y0..y0 + h {
         for x in x0..x0 + w {
-            let size = (scene.width as u32, scene.height as u32);
+            let (pixel, size) = scene.sample_key(x, y);
             for s in 0..settings.spp as u64 {
-                let mut sampler = sampler.stream(
-                    settings.seed,
-                    (x as u32, y as u32),
-                    size,
-                    settings.first_sample + s,
-                );
+                let mut sampler =
+                    sampler.stream(settings.seed, pixel, size, settings.first_sample + s);
                 // Mitsuba's sampler dimension order: pixel position, then aperture.
                 let pos = Vec2::new(x as f32, y as f32) + sampler.next_2d();
                 let ray = if scene.camera.needs_aperture_sample() {

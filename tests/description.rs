@@ -2,7 +2,7 @@
 //! `scene::description::from_xml`, for every supported plugin and parameter, Mitsuba's
 //! defaults, and the errors for everything outside the supported subset.
 
-use glam::{DMat4, DVec3, DVec4};
+use glam::{DMat4, DVec2, DVec3, DVec4};
 use penumbra::camera::FovAxis;
 use penumbra::sampler::SamplerKind;
 use penumbra::scene::build::build;
@@ -498,14 +498,23 @@ fn missing_sensor_fails() {
     assert!(message.contains("no <sensor>"), "{message}");
 }
 
+/// Several sensors load, as in Mitsuba (sionna's scenes have four): the first is rendered
+/// (Mitsuba's `mi.render` renders `scene.sensors()[0]`) unless another is selected.
 #[test]
-fn two_sensors_fail() {
-    let xml = scene(&format!("{SENSOR}\n{SENSOR}"));
-    let second = xml.rfind("<sensor").unwrap();
-    let line = 1 + xml[..second].matches('\n').count();
-    let message = error(&xml);
-    assert!(message.starts_with(&format!("{FILE}:{line}:")), "{message}");
-    assert!(message.contains("exactly one <sensor>"), "{message}");
+fn several_sensors_render_the_first_or_the_selected_one() {
+    let second = SENSOR.replace(r#"value="45""#, r#"value="60""#);
+    let mut d = desc(&scene(&format!("{SENSOR}\n{second}")));
+    assert_eq!(d.sensors.len(), 2);
+    assert_eq!(d.sensor.fov, 45.0);
+    d.select_sensor(1).unwrap();
+    assert_eq!(d.sensor.fov, 60.0);
+    d.select_sensor(0).unwrap();
+    assert_eq!(d.sensor.fov, 45.0);
+    let e = d.select_sensor(2).unwrap_err().to_string();
+    assert!(
+        e.contains("sensor 2 does not exist: the scene has 2 sensors"),
+        "{e}"
+    );
 }
 
 // ---------------------------------------------------------------------------------------
@@ -543,16 +552,35 @@ fn hdrfilm_defaults_and_size() {
     assert_eq!((film.width, film.height), (max, 7));
 }
 
+/// Mitsuba's output-encoding parameters: every value Mitsuba accepts loads (float16 is
+/// honoured, the others penumbra cannot write are warned about), the rest are refused.
 #[test]
-fn component_and_pixel_formats() {
-    for format in ["float16", "float32", "uint32"] {
-        let xml = sensor_scene(
+fn component_pixel_and_file_formats() {
+    let film = |props: &str| {
+        parse(&sensor_scene(
             r#"<float name="fov" value="30"/>"#,
-            &format!(r#"<string name="component_format" value="{format}"/>"#),
+            props,
             r#"<rfilter type="box"/>"#,
-        );
-        desc(&xml);
+        ))
+    };
+    for (format, half) in [("float16", true), ("float32", false), ("FLOAT16", true)] {
+        let d = film(&format!(
+            r#"<string name="component_format" value="{format}"/>"#
+        ))
+        .unwrap();
+        assert_eq!(d.sensor.film.half, half, "{format}");
+        assert!(d.warnings.is_empty(), "{format}: {:?}", d.warnings);
     }
+    assert!(
+        !film("").unwrap().sensor.film.half,
+        "penumbra writes float32 by default"
+    );
+    let d = film(r#"<string name="component_format" value="uint32"/>"#).unwrap();
+    assert!(
+        d.warnings[0].contains("'uint32' is written as float32"),
+        "{:?}",
+        d.warnings
+    );
     let xml = sensor_scene(
         r#"<float name="fov" value="30"/>"#,
         r#"<string name="component_format" value="float64"/>"#,
@@ -563,23 +591,94 @@ fn component_and_pixel_formats() {
         "component_format",
         &["component_format must be float16, float32 or uint32, not 'float64'"],
     );
+    assert!(film(r#"<string name="pixel_format" value="RGB"/>"#)
+        .unwrap()
+        .warnings
+        .is_empty());
+    for format in ["rgba", "luminance", "luminance_alpha", "xyz", "xyza"] {
+        let d = film(&format!(
+            r#"<string name="pixel_format" value="{format}"/>"#
+        ))
+        .unwrap();
+        assert_eq!(d.warnings.len(), 1, "{format}");
+        assert!(d.warnings[0].contains(&format!("pixel_format '{format}' is written as rgb")));
+    }
     let xml = sensor_scene(
         r#"<float name="fov" value="30"/>"#,
-        r#"<string name="pixel_format" value="rgb"/>"#,
+        r#"<string name="pixel_format" value="cmyk"/>"#,
         r#"<rfilter type="box"/>"#,
     );
-    desc(&xml);
-    for format in ["rgba", "luminance", "xyz"] {
-        let xml = sensor_scene(
+    assert_error(
+        &xml,
+        "pixel_format",
+        &["pixel_format must be luminance, luminance_alpha, rgb, rgba, xyz or xyza, not 'cmyk'"],
+    );
+    // Bitterli's exporter writes file_format="openexr" in every scene.
+    for format in ["openexr", "exr", "OpenEXR"] {
+        let d = film(&format!(r#"<string name="file_format" value="{format}"/>"#)).unwrap();
+        assert!(d.warnings.is_empty(), "{format}");
+    }
+    for format in ["rgbe", "pfm"] {
+        let d = film(&format!(r#"<string name="file_format" value="{format}"/>"#)).unwrap();
+        assert!(
+            d.warnings[0].contains("written as OpenEXR"),
+            "{:?}",
+            d.warnings
+        );
+    }
+    let xml = sensor_scene(
+        r#"<float name="fov" value="30"/>"#,
+        r#"<string name="file_format" value="png"/>"#,
+        r#"<rfilter type="box"/>"#,
+    );
+    assert_error(
+        &xml,
+        "file_format",
+        &["file_format must be openexr, pfm or rgbe, not 'png'"],
+    );
+    // `banner` is read and ignored (as in Mitsuba 3); `compensate` warns, as in Mitsuba.
+    let d = film(r#"<boolean name="banner" value="false"/>"#).unwrap();
+    assert!(d.warnings.is_empty());
+    let d = film(r#"<boolean name="compensate" value="true"/>"#).unwrap();
+    assert!(
+        d.warnings[0].contains("'compensate' is ignored"),
+        "{:?}",
+        d.warnings
+    );
+}
+
+/// The crop window: Mitsuba's defaults (the whole film), a window inside the film, and
+/// windows that leave it or are empty refused.
+#[test]
+fn crop_window() {
+    let film = |props: &str| {
+        parse(&sensor_scene(
             r#"<float name="fov" value="30"/>"#,
-            &format!(r#"<string name="pixel_format" value="{format}"/>"#),
+            &format!(
+                r#"<integer name="width" value="40"/><integer name="height" value="30"/>{props}"#
+            ),
             r#"<rfilter type="box"/>"#,
-        );
-        assert_error(
-            &xml,
-            "pixel_format",
-            &[&format!("pixel_format '{format}' is not supported")],
-        );
+        ))
+    };
+    let f = film("").unwrap().sensor.film;
+    assert_eq!((f.crop_offset, f.crop_size), ((0, 0), (40, 30)));
+    let f = film(
+        r#"<integer name="crop_offset_x" value="5"/><integer name="crop_offset_y" value="7"/>
+           <integer name="crop_width" value="20"/><integer name="crop_height" value="23"/>"#,
+    )
+    .unwrap()
+    .sensor
+    .film;
+    assert_eq!((f.width, f.height), (40, 30));
+    assert_eq!((f.crop_offset, f.crop_size), ((5, 7), (20, 23)));
+    for bad in [
+        r#"<integer name="crop_offset_x" value="21"/><integer name="crop_width" value="20"/>"#,
+        r#"<integer name="crop_offset_y" value="1"/>"#,
+        r#"<integer name="crop_width" value="0"/>"#,
+        r#"<integer name="crop_offset_x" value="-1"/>"#,
+    ] {
+        let e = film(bad).unwrap_err().to_string();
+        assert!(e.contains("invalid crop window"), "{bad}: {e}");
     }
 }
 
@@ -642,7 +741,7 @@ fn box_tent_and_gaussian_filters_are_accepted() {
     assert_error(
         &xml,
         "<rfilter",
-        &["<rfilter type=\"box\"> cannot be nested in <film type=\"hdrfilm\">"],
+        &["a film can only have one reconstruction filter"],
     );
 }
 
@@ -1778,20 +1877,103 @@ fn zero_scaled_shapes_fail_to_build() {
 
 #[test]
 fn build_warns_about_missing_emitters() {
-    let d = desc(&with_sensor(r#"<shape type="sphere"/>"#));
+    let d = desc(&with_sensor(
+        r#"<integrator type="path"/><shape type="sphere"/>"#,
+    ));
     let scene = build(&d).unwrap();
     assert_eq!(
         scene.warnings,
         ["the scene has no emitter: the image will be black"]
     );
     let d = desc(&with_sensor(
-        r#"<shape type="sphere"><emitter type="area"><rgb name="radiance" value="1"/></emitter></shape>"#,
+        r#"<integrator type="path"/><shape type="sphere"><emitter type="area"><rgb name="radiance" value="1"/></emitter></shape>"#,
     ));
     let scene = build(&d).unwrap();
     assert!(scene.warnings.is_empty(), "{:?}", scene.warnings);
     assert_eq!(scene.emitters.len(), 1);
     assert_eq!((scene.width, scene.height), (32, 24));
     assert_eq!((scene.sample_count, scene.seed), (4, 0));
+}
+
+/// A scene without an integrator (Mitsuba's own test scenes have none: its harness passes
+/// one) renders with `path` and its defaults, and says so until an integrator is chosen.
+#[test]
+fn a_scene_without_integrator_renders_with_path_and_says_so() {
+    let d = desc(&with_sensor(
+        r#"<shape type="sphere"><emitter type="area"><rgb name="radiance" value="1"/></emitter></shape>"#,
+    ));
+    assert!(d.integrator_missing);
+    assert_eq!(
+        d.integrator,
+        IntegratorDesc::Path {
+            max_depth: -1,
+            rr_depth: 5,
+            hide_emitters: false
+        }
+    );
+    let mut scene = build(&d).unwrap();
+    assert_eq!(scene.warnings.len(), 1);
+    assert!(scene.warnings[0].starts_with("the scene has no <integrator>: rendering with path"));
+    scene.use_integrator("path").unwrap();
+    assert!(scene.warnings.is_empty(), "{:?}", scene.warnings);
+    let d = desc(&with_sensor(r#"<integrator type="path"/>"#));
+    assert!(!d.integrator_missing);
+}
+
+/// The perspective sensor's principal point shift and the shutter times Mitsuba reads;
+/// a spectral response function needs spectral rendering (refused, as in Mitsuba's RGB
+/// variants).
+#[test]
+fn principal_point_shutter_and_srf() {
+    let sensor = |plugin: &str, props: &str| {
+        parse(&scene(&format!(
+            r#"<sensor type="{plugin}">
+    <float name="fov" value="30"/>
+    <float name="aperture_radius" value="0.1"/>
+    {props}
+</sensor>"#
+        )))
+    };
+    let d = sensor(
+        "perspective",
+        r#"<float name="principal_point_offset_x" value="0.25"/><float name="principal_point_offset_y" value="-0.125"/>"#,
+    )
+    .map_err(|e| e.to_string());
+    let e = d.unwrap_err();
+    assert!(e.contains("unknown parameter 'aperture_radius'"), "{e}");
+    let d = parse(&scene(
+        r#"<sensor type="perspective">
+    <float name="fov" value="30"/>
+    <float name="principal_point_offset_x" value="0.25"/>
+    <float name="principal_point_offset_y" value="-0.125"/>
+    <float name="shutter_open" value="0.5"/>
+    <float name="shutter_close" value="1.5"/>
+</sensor>"#,
+    ))
+    .unwrap();
+    assert_eq!(d.sensor.principal_point, DVec2::new(0.25, -0.125));
+    // Mitsuba's thin lens has no principal point: the parameter is unknown there.
+    let e = sensor(
+        "thinlens",
+        r#"<float name="principal_point_offset_x" value="0.25"/>"#,
+    )
+    .unwrap_err()
+    .to_string();
+    assert!(
+        e.contains("unknown parameter 'principal_point_offset_x'"),
+        "{e}"
+    );
+    let e = sensor(
+        "thinlens",
+        r#"<float name="shutter_open" value="2"/><float name="shutter_close" value="1"/>"#,
+    )
+    .unwrap_err()
+    .to_string();
+    assert!(e.contains("must not be later than shutter_close"), "{e}");
+    let e = sensor("thinlens", r#"<spectrum name="srf" value="1"/>"#)
+        .unwrap_err()
+        .to_string();
+    assert!(e.contains("needs spectral rendering"), "{e}");
 }
 
 #[test]

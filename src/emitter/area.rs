@@ -54,6 +54,7 @@ fn sphere_cone(s: &Sphere, p_ref: Vec3) -> Option<(DVec3, f64, f64, f64)> {
 fn texture_context<'a>(si: &SurfaceInteraction, geometry: &'a ShapeGeometry) -> TextureContext<'a> {
     TextureContext {
         uv: si.uv,
+        p: si.p,
         prim: si.prim,
         bary: si.bary,
         mesh: match geometry {

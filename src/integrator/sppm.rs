@@ -539,7 +539,6 @@ impl Sppm {
             a.dot(b).clamp(-1.0, 1.0).acos().max(1e-6) as f64
         };
         let sampler = settings.sampler.unwrap_or(scene.sampler);
-        let size = (w as u32, h as u32);
         let total = n as u64 * count;
         let first = *iterations;
         // Buffers reused by every iteration (a visible point holds a whole BSDF: moving
@@ -560,12 +559,8 @@ impl Sppm {
                     .for_each(|(y, ((vp_row, ld_row), st))| {
                         *st = PathStats::default();
                         for (x, (vp, l)) in vp_row.iter_mut().zip(ld_row).enumerate() {
-                            let mut s = sampler.stream(
-                                settings.seed,
-                                (x as u32, y as u32),
-                                size,
-                                iteration,
-                            );
+                            let (pixel, size) = scene.sample_key(x, y);
+                            let mut s = sampler.stream(settings.seed, pixel, size, iteration);
                             let pos = Vec2::new(x as f32, y as f32) + s.next_2d();
                             *l = self.camera_path(scene, pos, &mut s, st, vp);
                         }

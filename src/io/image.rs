@@ -7,7 +7,8 @@
 //! | JPEG | libjpeg: 1 component (grey) or 3 (RGB); CMYK refused | the `image` crate (`jpeg`, zune-jpeg); CMYK and other component counts refused; a file without an end-of-image marker refused as truncated (libjpeg would fill the missing rows with grey and warn) |
 //! | BMP | its own reader: 40-byte BITMAPINFOHEADER, uncompressed only; 8 bpp read as grey **ignoring the palette**, 16 bpp as grey + alpha, 24 and 32 bpp as BGR[A]; negative height = top-down rows | its own reader of exactly that subset (the `image` crate's BMP decoder applies palettes and reads RGB555, so it would disagree with Mitsuba) |
 //! | OpenEXR | OpenEXR: the first part, channels Y, YA, RGB, RGBA, XYZ, XYZA (exact names), half, float or uint | the `exr` crate: same channel sets, half or float (uint and chroma-subsampled channels refused) |
-//! | RGBE, PFM, PPM, TGA | read | refused with a message naming the format |
+//! | RGBE (`.hdr`) | its own reader: `FORMAT=32-bit_rle_rgbe` (or `_xyze`), `-Y h +X w`, flat or run-length scanlines, value = byte · 2^(e − 136) | the `image` crate (`hdr`): the same header, orientation and decoding, float RGB; XYZE refused |
+//! | PFM, PPM, TGA | read | refused with a message naming the format |
 //!
 //! The format is detected from the first bytes, as Mitsuba does (not from the extension).
 //!
@@ -50,6 +51,8 @@ pub enum FileFormat {
     Jpeg,
     Bmp,
     Exr,
+    /// Radiance RGBE (`.hdr`).
+    Rgbe,
 }
 
 /// The channel layout stored in the file, before alpha is dropped and XYZ converted.
@@ -159,6 +162,7 @@ pub fn decode_limited(bytes: &[u8], max_pixels: u64) -> Result<Image, String> {
         FileFormat::Jpeg => decode_jpeg(bytes, max_pixels),
         FileFormat::Bmp => decode_bmp(bytes, max_pixels),
         FileFormat::Exr => decode_exr(bytes, max_pixels),
+        FileFormat::Rgbe => decode_rgbe(bytes, max_pixels),
     })
     .unwrap_or_else(|_| {
         Err(format!(
@@ -180,7 +184,7 @@ pub fn detect(bytes: &[u8]) -> Result<FileFormat, String> {
     if start(b"BM") {
         Ok(FileFormat::Bmp)
     } else if start(b"#?") {
-        Err("RGBE (.hdr) images are not supported".into())
+        Ok(FileFormat::Rgbe)
     } else if start(b"PF") || start(b"Pf") {
         Err("PFM images are not supported".into())
     } else if start(b"P6") {
@@ -196,7 +200,7 @@ pub fn detect(bytes: &[u8]) -> Result<FileFormat, String> {
     } else if bytes.is_empty() {
         Err("empty file".into())
     } else {
-        Err("unknown image format (not PNG, JPEG, BMP or OpenEXR)".into())
+        Err("unknown image format (not PNG, JPEG, BMP, OpenEXR or RGBE)".into())
     }
 }
 
@@ -482,6 +486,49 @@ const XYZ_TO_RGB: [[f32; 3]; 3] = [
     [-0.969256, 1.875991, 0.041556],
     [0.055648, -0.204043, 1.057311],
 ];
+
+/// Radiance RGBE through the `image` crate: float RGB, linear (as Mitsuba's `read_rgbe`).
+fn decode_rgbe(bytes: &[u8], max_pixels: u64) -> Result<Image, String> {
+    use image::ImageDecoder;
+    // Mitsuba takes any first line starting with "#?" (its own writer's is "#?RGBE"); the
+    // crate wants Radiance's "#?RADIANCE": give it that line.
+    let line_end = bytes
+        .iter()
+        .position(|&b| b == b'\n')
+        .unwrap_or(bytes.len());
+    let patched;
+    let bytes = if &bytes[..line_end] == b"#?RADIANCE" {
+        bytes
+    } else {
+        patched = [b"#?RADIANCE".as_slice(), &bytes[line_end..]].concat();
+        patched.as_slice()
+    };
+    let decoder = image::codecs::hdr::HdrDecoder::new(Cursor::new(bytes))
+        .map_err(|e| format!("cannot read RGBE header (truncated or corrupt): {e}"))?;
+    let (w, h) = decoder.dimensions();
+    // 32 bits a pixel before run-length coding, which expands at most 64 times.
+    check_size(w as u64, h as u64, 32, bytes.len(), max_pixels)?;
+    let total = usize::try_from(decoder.total_bytes()).map_err(|_| "image too large")?;
+    if total != w as usize * h as usize * 12 {
+        return Err(format!("unexpected RGBE layout {:?}", decoder.color_type()));
+    }
+    let mut buf = vec![0u8; total];
+    decoder
+        .read_image(&mut buf)
+        .map_err(|e| format!("cannot decode RGBE (truncated or corrupt): {e}"))?;
+    let v: Vec<f32> = buf
+        .chunks_exact(4)
+        .map(|b| f32::from_ne_bytes([b[0], b[1], b[2], b[3]]))
+        .collect();
+    Ok(Image {
+        width: w as usize,
+        height: h as usize,
+        channels: 3,
+        samples: Samples::F32(v),
+        format: FileFormat::Rgbe,
+        layout: Layout::Rgb,
+    })
+}
 
 fn decode_exr(bytes: &[u8], max_pixels: u64) -> Result<Image, String> {
     use ::exr::prelude::*;
@@ -942,5 +989,30 @@ mod tests {
         ];
         assert!(err(&jpeg).contains("4 components"));
         assert!(err(&exr(2, 2, &["U", "V"])).contains("unsupported OpenEXR channels"));
+    }
+
+    /// scenes/volume-texture/sky.hdr was written by Mitsuba 3.9.1 from sky-64x32.exr
+    /// (make_assets.py): its texels are the EXR's to RGBE's precision (8-bit mantissas sharing
+    /// the largest channel's exponent), with Mitsuba's "#?RGBE" first line or Radiance's.
+    #[test]
+    fn rgbe_written_by_mitsuba_matches_its_source() {
+        let hdr = std::fs::read(repo("scenes/volume-texture/sky.hdr")).unwrap();
+        let exr = std::fs::read(repo("scenes/textures/sky-64x32.exr")).unwrap();
+        assert!(hdr.starts_with(b"#?RGBE\n"));
+        let (a, b) = (decode(&hdr).unwrap(), decode(&exr).unwrap());
+        assert_eq!((a.format, a.layout, a.channels), (FileFormat::Rgbe, Layout::Rgb, 3));
+        assert_eq!((a.width, a.height), (b.width, b.height));
+        for p in 0..a.width * a.height {
+            let m = (0..3).map(|c| b.samples.value(3 * p + c)).fold(0.0f32, f32::max);
+            for c in 0..3 {
+                let (x, y) = (a.samples.value(3 * p + c), b.samples.value(3 * p + c));
+                // RGBE truncates each channel to a step of 2^(e-8) with 2^e > max channel
+                assert!(y - x >= 0.0 && y - x <= m / 128.0, "texel {p} channel {c}: {x} vs {y}");
+            }
+        }
+        let radiance = [b"#?RADIANCE".as_slice(), &hdr[6..]].concat();
+        assert_eq!(decode(&radiance).unwrap(), a);
+        // a truncated file is an error, not a panic
+        assert!(err(&hdr[..hdr.len() / 2]).contains("RGBE"));
     }
 }

@@ -28,8 +28,14 @@ pub struct Scene {
     pub emitters: Vec<Emitter>,
     pub accel: Accel,
     pub camera: Camera,
+    /// The image: the film's crop window (by default the whole film).
     pub width: usize,
     pub height: usize,
+    /// Where the image lies on the whole film (its crop offset) and the film's size, in
+    /// pixels: samplers are keyed by film pixels, so a crop renders the same samples as the
+    /// same pixels of the whole film.
+    pub film_origin: (u32, u32),
+    pub film_size: (u32, u32),
     pub filter: Filter,
     /// The sampler's `sample_count` after its rounding (the CLI's `--spp` overrides it).
     pub sample_count: u32,
@@ -59,6 +65,16 @@ pub struct Scene {
 }
 
 impl Scene {
+    /// The film pixel of image pixel (x, y), and the film's size: what a pixel's sample
+    /// stream is keyed by ([`crate::sampler::Sampler::stream`]).
+    #[inline]
+    pub fn sample_key(&self, x: usize, y: usize) -> ((u32, u32), (u32, u32)) {
+        (
+            (self.film_origin.0 + x as u32, self.film_origin.1 + y as u32),
+            self.film_size,
+        )
+    }
+
     /// Makes the sampler draw passes of `spp` points, rounded as the plugin does (Mitsuba's
     /// `set_sample_count`, which its `render(spp=...)` calls); returns the rounded count and
     /// a warning when rounding changed it.
@@ -96,6 +112,8 @@ impl Scene {
     /// scene written for the path tracer with a light-path integrator (the validation
     /// study's light-tracing entries, `penumbra render --integrator`).
     pub fn use_integrator(&mut self, kind: &str) -> Result<()> {
+        self.warnings
+            .retain(|w| w != description::NO_INTEGRATOR_WARNING);
         use crate::integrator::{Integrator, ParticleTracer, PathIntegrator};
         let (max_depth, rr_depth, hide_emitters) =
             match &self.integrator {
@@ -273,6 +291,7 @@ impl Scene {
         let ctx = ShadingContext {
             tex: TextureContext {
                 uv: si.uv,
+                p: si.p,
                 prim: si.prim,
                 bary: si.bary,
                 mesh,

@@ -8,6 +8,7 @@
 //! | `bitmap` | `filename`, `raw`, `filter_type`, `wrap_mode`, `to_uv` | [`bitmap::BitmapTexture`] |
 //! | `checkerboard` | `color0` (0.4), `color1` (0.2), `to_uv` | [`checkerboard::Checkerboard`] |
 //! | `mesh_attribute` | `name` (`vertex_*`, `face_*`), `scale` (1) | [`mesh_attribute::MeshAttributeTexture`] |
+//! | `volume` | `volume` (a `constvolume` or `gridvolume`, looked up at the point) | [`volume::VolumeTexture`] |
 //!
 //! Mitsuba's three lookups: `eval` is the colour (linear RGB), `eval_1` one value (the mean
 //! of a constant colour, a bitmap's own rule, the single channel of an attribute) for
@@ -18,20 +19,24 @@
 pub mod bitmap;
 pub mod checkerboard;
 pub mod mesh_attribute;
+pub mod volume;
 
 pub use bitmap::BitmapTexture;
 pub use checkerboard::Checkerboard;
 pub use mesh_attribute::MeshAttributeTexture;
+pub use volume::VolumeTexture;
 
 use crate::bsdf::Spectrum;
 use crate::shape::Mesh;
 use glam::{DMat3, Vec2, Vec3};
 
-/// What a texture lookup needs of the shading point: the surface coordinates, and for mesh
-/// attributes the triangle, its barycentrics and the mesh.
+/// What a texture lookup needs of the shading point: the surface coordinates, the position
+/// (volume textures), and for mesh attributes the triangle, its barycentrics and the mesh.
 #[derive(Clone, Copy, Debug)]
 pub struct TextureContext<'a> {
     pub uv: Vec2,
+    /// The point, in the space the scene is built in (world space shifted to the camera).
+    pub p: Vec3,
     /// Triangle index within the mesh (0 for analytic shapes).
     pub prim: u32,
     /// Barycentrics (b1, b2) of the hit in its triangle (meshes only).
@@ -45,6 +50,7 @@ impl TextureContext<'_> {
     pub fn at_uv(uv: Vec2) -> Self {
         TextureContext {
             uv,
+            p: Vec3::ZERO,
             prim: 0,
             bary: Vec2::ZERO,
             mesh: None,
@@ -65,6 +71,7 @@ pub enum Texture {
     Bitmap(BitmapTexture),
     Checkerboard(Box<Checkerboard>),
     MeshAttribute(MeshAttributeTexture),
+    Volume(VolumeTexture),
 }
 
 impl Texture {
@@ -84,6 +91,7 @@ impl Texture {
             Texture::Bitmap(b) => b.eval(ctx.uv),
             Texture::Checkerboard(c) => c.eval(ctx),
             Texture::MeshAttribute(a) => a.eval(ctx),
+            Texture::Volume(v) => v.eval(ctx.p),
         }
     }
 
@@ -95,6 +103,7 @@ impl Texture {
             Texture::Bitmap(b) => b.eval_1(ctx.uv),
             Texture::Checkerboard(c) => c.eval_1(ctx),
             Texture::MeshAttribute(a) => a.eval_1(ctx),
+            Texture::Volume(v) => v.eval_1(ctx.p),
         }
     }
 
@@ -106,6 +115,7 @@ impl Texture {
             Texture::Bitmap(b) => b.eval(ctx.uv),
             Texture::Checkerboard(c) => c.eval(ctx),
             Texture::MeshAttribute(a) => a.eval(ctx),
+            Texture::Volume(v) => v.eval(ctx.p),
         }
     }
 
@@ -116,9 +126,11 @@ impl Texture {
     pub fn eval_1_grad(&self, ctx: &TextureContext) -> Vec2 {
         match self {
             Texture::Bitmap(b) => b.eval_1_grad(ctx.uv),
-            Texture::Constant { .. } | Texture::Checkerboard(_) | Texture::MeshAttribute(_) => {
-                Vec2::ZERO
-            }
+            // Mitsuba's volume texture has no uv gradient either.
+            Texture::Constant { .. }
+            | Texture::Checkerboard(_)
+            | Texture::MeshAttribute(_)
+            | Texture::Volume(_) => Vec2::ZERO,
         }
     }
 
@@ -130,6 +142,7 @@ impl Texture {
             Texture::Checkerboard(c) => c.mean(),
             // Mitsuba has no mean for an attribute; its constant scale is what is known.
             Texture::MeshAttribute(a) => a.scale,
+            Texture::Volume(v) => v.mean(),
         }
     }
 

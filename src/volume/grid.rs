@@ -89,6 +89,28 @@ impl GridVolume {
         })
     }
 
+    /// Values per cell: 1 or 3.
+    pub fn channels(&self) -> usize {
+        self.channels
+    }
+
+    /// The mean of the cells' values (a one-channel grid's as grey).
+    pub fn mean(&self) -> Vec3 {
+        let cells = self.data.len() / self.channels;
+        let mut sum = [0.0f64; 3];
+        for cell in self.data.chunks_exact(self.channels) {
+            for (c, s) in sum.iter_mut().enumerate() {
+                *s += cell[c.min(self.channels - 1)] as f64;
+            }
+        }
+        let n = cells.max(1) as f64;
+        Vec3::new(
+            (sum[0] / n) as f32,
+            (sum[1] / n) as f32,
+            (sum[2] / n) as f32,
+        )
+    }
+
     #[inline]
     fn fetch(&self, x: usize, y: usize, z: usize) -> Vec3 {
         let i = ((z * self.res[1] + y) * self.res[0] + x) * self.channels;

@@ -13,11 +13,11 @@ use crate::bsdf::{
 use crate::error::{Error, Result};
 use crate::material::{Material, MAX_NODES};
 use crate::scene::description::{
-    BsdfDesc, MicrofacetDesc, MicrofacetKind, PrincipledDesc, TextureDesc,
+    BsdfDesc, MicrofacetDesc, MicrofacetKind, PrincipledDesc, TextureDesc, VolumeDesc,
 };
 use crate::texture::bitmap::{BitmapTexture, Format, TexImage};
-use crate::texture::{Checkerboard, MeshAttributeTexture, Texture, UvTransform};
-use glam::Vec3;
+use crate::texture::{Checkerboard, MeshAttributeTexture, Texture, UvTransform, VolumeTexture};
+use glam::{DMat4, Vec3};
 use std::path::PathBuf;
 use std::sync::Arc;
 
@@ -32,6 +32,8 @@ pub struct MaterialBuilder {
     images: Vec<((PathBuf, bool, Format), Arc<TexImage>)>,
     /// roughplastic's coating tables, by distribution and η (they take ~0.1 s each).
     coatings: Vec<((Microfacet, f32), CoatingTables)>,
+    /// World space to the space the scene is built in (volume textures are looked up there).
+    pub shift: DMat4,
 }
 
 impl MaterialBuilder {
@@ -364,6 +366,15 @@ impl MaterialBuilder {
                     }
                 };
                 Texture::Bitmap(BitmapTexture::new(image, b.filter, b.wrap, b.to_uv))
+            }
+            TextureDesc::Volume(v) => {
+                let scalar = match v {
+                    VolumeDesc::Constant { value, .. } => {
+                        TextureDesc::rgb(*value).constant_scalar().unwrap_or(0.0) as f32
+                    }
+                    VolumeDesc::Grid { .. } => 0.0,
+                };
+                Texture::Volume(VolumeTexture::new(super::volume(v, self.shift)?, scalar))
             }
         })
     }

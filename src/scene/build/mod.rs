@@ -10,11 +10,13 @@ pub use mesh::{load_mesh, load_obj, mesh_from_bytes, obj_from_bytes, MeshFormat,
 
 use super::description::{
     EmitterDesc, FilterDesc, IntegratorDesc, MediumDesc, PhaseDesc, SceneDescription, ShapeDesc,
-    ShapeKind, VolumeDesc,
+    ShapeKind, VolumeDesc, NO_INTEGRATOR_WARNING,
 };
 use super::Scene;
 use crate::accel::{Accel, Group, Instance};
-use crate::camera::{fov_x_degrees, Camera, OrthographicCamera, PerspectiveCamera, ThinLens};
+use crate::camera::{
+    fov_x_degrees, Camera, FilmWindow, OrthographicCamera, PerspectiveCamera, ThinLens,
+};
 use crate::emitter::{
     AreaEmitter, ConstantEmitter, DirectionalEmitter, Emitter, EnvMapEmitter, PointEmitter,
     ProjectorEmitter, SpotEmitter,
@@ -181,10 +183,19 @@ fn build_integrator(
 pub fn build(desc: &SceneDescription) -> Result<Scene> {
     let s = &desc.sensor;
     let shift = DMat4::from_translation(-s.to_world.transform_point3(DVec3::ZERO));
-    let (width, height) = (s.film.width as usize, s.film.height as usize);
-    let aspect = width as f64 / height as f64;
+    // The image is the film's crop window; the camera's projection is the whole film's.
+    let (width, height) = (s.film.crop_size.0 as usize, s.film.crop_size.1 as usize);
+    let aspect = s.film.width as f64 / s.film.height as f64;
+    let window = FilmWindow::new(
+        (s.film.width, s.film.height),
+        s.film.crop_offset,
+        s.film.crop_size,
+        s.principal_point,
+    );
     let camera: Camera = if s.orthographic {
-        OrthographicCamera::new(shift * s.to_world, aspect, s.near_clip, s.far_clip).into()
+        OrthographicCamera::new(shift * s.to_world, aspect, s.near_clip, s.far_clip)
+            .with_window(window)
+            .into()
     } else {
         let mut camera = PerspectiveCamera::new(
             shift * s.to_world,
@@ -199,11 +210,15 @@ pub fn build(desc: &SceneDescription) -> Result<Scene> {
                 focus_distance,
             });
         }
-        camera.into()
+        camera.with_window(window).into()
     };
     let mut warnings = desc.warnings.clone();
+    if desc.integrator_missing {
+        warnings.push(NO_INTEGRATOR_WARNING.into());
+    }
     let mut shapes = Vec::new();
     let mut materials = material::MaterialBuilder::default();
+    materials.shift = shift;
     let mut emitters = Vec::new();
     let mut instances = Vec::new();
     for sd in &desc.shapes {
@@ -325,6 +340,8 @@ pub fn build(desc: &SceneDescription) -> Result<Scene> {
         camera,
         width,
         height,
+        film_origin: s.film.crop_offset,
+        film_size: (s.film.width, s.film.height),
         filter: match s.film.rfilter {
             FilterDesc::Box => Filter::Box,
             FilterDesc::Tent { radius } => Filter::Tent { radius },
@@ -375,7 +392,7 @@ fn medium(m: &MediumDesc, shift: DMat4) -> Result<Medium> {
     })
 }
 
-fn volume(v: &VolumeDesc, shift: DMat4) -> Result<Volume> {
+pub(super) fn volume(v: &VolumeDesc, shift: DMat4) -> Result<Volume> {
     Ok(match v {
         VolumeDesc::Constant { value, to_world } => Volume::Constant(ConstVolume::new(
             value.as_vec3(),
@@ -404,6 +421,41 @@ fn volume(v: &VolumeDesc, shift: DMat4) -> Result<Volume> {
             .map_err(bad)?;
             Volume::Grid(Box::new(grid))
         }
+    })
+}
+
+/// An environment map's texels as linear RGB, from any image format Mitsuba's `envmap` reads
+/// (its `Bitmap::convert` to linear float RGB): 8- and 16-bit images are sRGB-decoded, grey
+/// becomes RGB, alpha is dropped, XYZ converted ([`crate::io::image`]).
+fn envmap_texels(path: &std::path::Path) -> Result<crate::io::exr::RgbImage> {
+    let img = crate::io::image::read(path).map_err(|message| Error::Image {
+        path: path.to_path_buf(),
+        message,
+    })?;
+    let decode = img.samples.is_integer();
+    let value = |i: usize| {
+        let v = img.samples.value(i);
+        if decode {
+            crate::texture::bitmap::srgb_to_linear(v as f64) as f32
+        } else {
+            v
+        }
+    };
+    let rgb = (0..img.width * img.height)
+        .map(|p| {
+            if img.channels == 1 {
+                [value(p); 3]
+            } else {
+                [value(3 * p), value(3 * p + 1), value(3 * p + 2)]
+            }
+        })
+        .collect();
+    Ok(crate::io::exr::RgbImage {
+        width: img.width,
+        height: img.height,
+        rgb,
+        variance: None,
+        attributes: Default::default(),
     })
 }
 
@@ -504,7 +556,7 @@ fn scene_emitter(
             to_world,
             location,
         } => {
-            let img = crate::io::exr::read(filename)?;
+            let img = envmap_texels(filename)?;
             if img
                 .rgb
                 .iter()

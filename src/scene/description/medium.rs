@@ -154,7 +154,7 @@ fn phase_desc(o: &Object) -> Result<PhaseDesc> {
     Ok(d)
 }
 
-fn volume_desc(cx: &Ctx, o: &Object) -> Result<VolumeDesc> {
+pub(super) fn volume_desc(cx: &Ctx, o: &Object) -> Result<VolumeDesc> {
     no_children(o)?;
     let mut p = Props::new(o);
     let to_world = p.transform("to_world")?;

@@ -41,7 +41,13 @@ pub struct SceneDescription {
     /// moment of the samples to the output: penumbra then writes the variance channels, as
     /// `render --variance` does.
     pub moment: bool,
+    /// The file has no `<integrator>`: `integrator` is `path` with its defaults.
+    pub integrator_missing: bool,
+    /// The sensor that is rendered: the file's first, as Mitsuba's `mi.render` renders
+    /// `scene.sensors()[0]`, unless [`SceneDescription::select_sensor`] chose another.
     pub sensor: SensorDesc,
+    /// Every sensor of the file, in document order (at least one).
+    pub sensors: Vec<SensorDesc>,
     pub shapes: Vec<ShapeDesc>,
     /// The shape groups that `instance` shapes refer to (by index).
     pub shape_groups: Vec<ShapeGroupDesc>,
@@ -54,6 +60,22 @@ pub struct SceneDescription {
 }
 
 impl SceneDescription {
+    /// Renders the file's sensor number `index` (from 0, in document order) instead of the
+    /// first (the CLI's `--sensor N`).
+    pub fn select_sensor(&mut self, index: usize) -> Result<()> {
+        match self.sensors.get(index) {
+            Some(s) => {
+                self.sensor = s.clone();
+                Ok(())
+            }
+            None => Err(Error::Invalid(format!(
+                "sensor {index} does not exist: the scene has {} sensor{} (numbered from 0)",
+                self.sensors.len(),
+                if self.sensors.len() == 1 { "" } else { "s" }
+            ))),
+        }
+    }
+
     /// Every file the scene reads when it is built (meshes, grids, environment maps), in
     /// description order; shape groups' files once each.
     pub fn files(&self) -> Vec<&Path> {
@@ -95,6 +117,11 @@ impl SceneDescription {
         files
     }
 }
+
+/// The warning of a scene without an `<integrator>` (rendered with `path`), until another
+/// integrator is chosen ([`crate::scene::Scene::use_integrator`]).
+pub const NO_INTEGRATOR_WARNING: &str =
+    "the scene has no <integrator>: rendering with path (max_depth -1, rr_depth 5); Mitsuba's mi.render needs one passed in";
 
 /// Largest image side accepted; larger ones are refused before allocating anything.
 pub const MAX_RESOLUTION: u32 = 1 << 16;
@@ -366,7 +393,7 @@ pub fn from_xml(doc: &Document) -> Result<SceneDescription> {
         media: RefCell::new(Vec::new()),
     };
     let mut integrator = None;
-    let mut sensor = None;
+    let mut sensors = Vec::new();
     let mut shapes = Vec::new();
     let mut emitters = Vec::new();
     let mut scene_area_emitters = Vec::new();
@@ -381,15 +408,9 @@ pub fn from_xml(doc: &Document) -> Result<SceneDescription> {
                 }
                 integrator = Some(integrator_desc(o)?);
             }
-            "sensor" => {
-                if sensor.is_some() {
-                    return Err(Error::scene(
-                        &o.location,
-                        "penumbra renders scenes with exactly one <sensor>",
-                    ));
-                }
-                sensor = Some(sensor_desc(&cx, o)?);
-            }
+            // Several sensors are allowed, as in Mitsuba; the first is rendered unless another
+            // is selected.
+            "sensor" => sensors.push(sensor_desc(&cx, o)?),
             // A shape group is only seen through its instances (Mitsuba: "not visible on
             // its own"); check it now so that errors surface even when it is never used.
             "shape" if o.plugin == "shapegroup" => {
@@ -444,7 +465,16 @@ pub fn from_xml(doc: &Document) -> Result<SceneDescription> {
             ));
         }
     }
-    let sensor = sensor.ok_or_else(|| Error::scene(&root.location, "the scene has no <sensor>"))?;
+    let sensor = sensors.first().cloned().ok_or_else(|| {
+        Error::scene(
+            &root.location,
+            "the scene has no <sensor>: there is nothing to render",
+        )
+    })?;
+    // Mitsuba loads a scene without an integrator but `mi.render` then needs one passed in
+    // (its test suite passes `path`); penumbra renders it with `path` and its defaults, and
+    // the built scene says so (see [`NO_INTEGRATOR_WARNING`]).
+    let integrator_missing = integrator.is_none();
     let (integrator, moment) = integrator.unwrap_or((
         IntegratorDesc::Path {
             max_depth: -1,
@@ -458,7 +488,9 @@ pub fn from_xml(doc: &Document) -> Result<SceneDescription> {
     Ok(SceneDescription {
         integrator,
         moment,
+        integrator_missing,
         sensor,
+        sensors,
         shapes,
         shape_groups,
         emitters,

@@ -4,6 +4,7 @@
 use super::*;
 use crate::camera::FovAxis;
 use crate::sampler::SamplerKind;
+use glam::DVec2;
 
 #[derive(Clone, Debug, PartialEq)]
 pub struct SensorDesc {
@@ -22,6 +23,9 @@ pub struct SensorDesc {
     pub location: Location,
     /// `thinlens`: (aperture_radius, focus_distance); `None` for `perspective`.
     pub thin_lens: Option<(f64, f64)>,
+    /// The perspective sensor's `principal_point_offset_x`/`_y`: the principal point's shift
+    /// from the film's centre, in fractions of the film's width and height.
+    pub principal_point: DVec2,
     /// Mitsuba's `orthographic` sensor: parallel rays along local +z from the local
     /// [-1, 1]² square (scaled by `to_world`).
     pub orthographic: bool,
@@ -29,9 +33,32 @@ pub struct SensorDesc {
 
 #[derive(Clone, Debug, PartialEq)]
 pub struct FilmDesc {
+    /// The whole film's size (`width`, `height`).
     pub width: u32,
     pub height: u32,
+    /// The crop window that is rendered and written (`crop_offset_x`/`_y`,
+    /// `crop_width`/`_height`; by default the whole film), in pixels of the film.
+    pub crop_offset: (u32, u32),
+    pub crop_size: (u32, u32),
     pub rfilter: FilterDesc,
+    /// `component_format`: the EXR's colour channels as float16 (`true`) or float32. Unlike
+    /// Mitsuba (float16 by default), penumbra writes float32 unless the file asks for float16:
+    /// its images are references and inputs to statistical comparisons.
+    pub half: bool,
+}
+
+impl FilmDesc {
+    /// Mitsuba's film when a sensor has none: hdrfilm, 768 × 576, gaussian filter.
+    pub fn default_film() -> Self {
+        FilmDesc {
+            width: 768,
+            height: 576,
+            crop_offset: (0, 0),
+            crop_size: (768, 576),
+            rfilter: FilterDesc::Gaussian { stddev: 0.5 },
+            half: false,
+        }
+    }
 }
 
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -141,6 +168,30 @@ pub(super) fn sensor_desc(cx: &Ctx, o: &Arc<Object>) -> Result<SensorDesc> {
     // an orthographic camera has no use for it.
     let focus_distance = p.float("focus_distance", far_clip)?;
     let to_world = p.transform("to_world")?;
+    let principal_point = if o.plugin == "perspective" {
+        DVec2::new(
+            p.float("principal_point_offset_x", 0.0)?,
+            p.float("principal_point_offset_y", 0.0)?,
+        )
+    } else {
+        DVec2::ZERO
+    };
+    // Mitsuba's sensors open and close a shutter for motion blur; nothing in a penumbra scene
+    // moves, so the times only have to be in order, as Mitsuba requires.
+    let shutter_open = p.float("shutter_open", 0.0)?;
+    let shutter_close = p.float("shutter_close", 0.0)?;
+    if !(shutter_close >= shutter_open) {
+        return Err(Error::scene(
+            &o.location,
+            format!("shutter_open ({shutter_open}) must not be later than shutter_close ({shutter_close})"),
+        ));
+    }
+    if let Some((_, loc)) = p.take("srf") {
+        return Err(Error::scene(
+            loc,
+            format!("'srf' of {} (a spectral response function) needs spectral rendering, which penumbra does not do; Mitsuba refuses it in RGB variants too", describe(o)),
+        ));
+    }
     p.finish()?;
     if !(fov > 0.0 && fov < 180.0) {
         return Err(Error::scene(
@@ -182,7 +233,7 @@ pub(super) fn sensor_desc(cx: &Ctx, o: &Arc<Object>) -> Result<SensorDesc> {
     let mut medium = None;
     for Child { object: c, .. } in &o.children {
         match c.tag.as_str() {
-            "film" if film.is_none() => film = Some(film_desc(c)?),
+            "film" if film.is_none() => film = Some(film_desc(cx, c)?),
             "sampler" if sampler.is_none() => sampler = Some(sampler_desc(c)?),
             "medium" if medium.is_none() => medium = Some(medium_index(cx, c)?),
             _ => return Err(unexpected_child(o, c)),
@@ -195,12 +246,7 @@ pub(super) fn sensor_desc(cx: &Ctx, o: &Arc<Object>) -> Result<SensorDesc> {
         near_clip,
         far_clip,
         to_world,
-        // Mitsuba's default film: hdrfilm 768x576 with the gaussian filter.
-        film: film.unwrap_or(FilmDesc {
-            width: 768,
-            height: 576,
-            rfilter: FilterDesc::Gaussian { stddev: 0.5 },
-        }),
+        film: film.unwrap_or_else(FilmDesc::default_film),
         sampler: sampler.unwrap_or(SamplerDesc {
             kind: SamplerKind::Independent,
             sample_count: 4,
@@ -208,35 +254,93 @@ pub(super) fn sensor_desc(cx: &Ctx, o: &Arc<Object>) -> Result<SensorDesc> {
         }),
         location: o.location.clone(),
         thin_lens,
+        principal_point,
         orthographic,
     })
 }
 
-pub(super) fn film_desc(o: &Object) -> Result<FilmDesc> {
+pub(super) fn film_desc(cx: &Ctx, o: &Object) -> Result<FilmDesc> {
     if o.plugin != "hdrfilm" {
         return Err(unsupported_plugin(o));
     }
     let mut p = Props::new(o);
     let width = p.int("width", 768)?;
     let height = p.int("height", 576)?;
-    if let Some((f, loc)) = p.string("component_format")? {
-        // The output is always float32 EXR; the other formats are accepted like Mitsuba.
-        if !matches!(f, "float16" | "float32" | "uint32") {
-            return Err(Error::scene(
-                loc,
-                format!("component_format must be float16, float32 or uint32, not '{f}'"),
-            ));
-        }
-    }
-    if let Some((f, loc)) = p.string("pixel_format")? {
-        if f != "rgb" {
-            return Err(Error::scene(
-                loc,
-                format!("pixel_format '{f}' is not supported (penumbra writes rgb)"),
-            ));
-        }
+    let crop_width = p.int("crop_width", width)?;
+    let crop_height = p.int("crop_height", height)?;
+    let crop_x = p.int("crop_offset_x", 0)?;
+    let crop_y = p.int("crop_offset_y", 0)?;
+    let sample_border = p.boolean("sample_border", false)?;
+    // Mitsuba lower-cases the three format names.
+    let lower = |v: Option<(&str, &Location)>| v.map(|(s, l)| (s.to_ascii_lowercase(), l.clone()));
+    let file_format = lower(p.string("file_format")?);
+    let pixel_format = lower(p.string("pixel_format")?);
+    let component_format = lower(p.string("component_format")?);
+    // Mitsuba 3 has no banner ("no banner in Mitsuba 3") and ignores it, as penumbra does.
+    let _ = p.take("banner");
+    if p.take("compensate").is_some() {
+        cx.warn(format!(
+            "{}: {}'s 'compensate' is ignored (Mitsuba 3 removed it; penumbra's sums are exact anyway)",
+            o.location,
+            describe(o)
+        ));
     }
     p.finish()?;
+    if let Some((f, loc)) = &file_format {
+        match f.as_str() {
+            "openexr" | "exr" => {}
+            "rgbe" | "pfm" => cx.warn(format!(
+                "{loc}: file_format '{f}' is not written by penumbra: the image is written as OpenEXR (the output's name is -o's)"
+            )),
+            _ => {
+                return Err(Error::scene(
+                    loc,
+                    format!("file_format must be openexr, pfm or rgbe, not '{f}' (as in Mitsuba)"),
+                ))
+            }
+        }
+    }
+    if let Some((f, loc)) = &pixel_format {
+        match f.as_str() {
+            "rgb" => {}
+            "rgba" | "luminance" | "luminance_alpha" | "xyz" | "xyza" => cx.warn(format!(
+                "{loc}: pixel_format '{f}' is written as rgb: penumbra writes R, G, B channels only"
+            )),
+            _ => {
+                return Err(Error::scene(
+                    loc,
+                    format!(
+                        "pixel_format must be luminance, luminance_alpha, rgb, rgba, xyz or xyza, not '{f}' (as in Mitsuba)"
+                    ),
+                ))
+            }
+        }
+    }
+    let half = match &component_format {
+        None => false,
+        Some((f, loc)) => match f.as_str() {
+            "float16" => true,
+            "float32" => false,
+            "uint32" => {
+                cx.warn(format!(
+                    "{loc}: component_format 'uint32' is written as float32 (penumbra writes float16 or float32)"
+                ));
+                false
+            }
+            _ => {
+                return Err(Error::scene(
+                    loc,
+                    format!("component_format must be float16, float32 or uint32, not '{f}' (as in Mitsuba)"),
+                ))
+            }
+        },
+    };
+    if sample_border {
+        cx.warn(format!(
+            "{}: sample_border is not implemented: only the crop window's own pixels are sampled (Mitsuba's default), so pixels within the filter's reach of the edges differ from Mitsuba's",
+            o.location
+        ));
+    }
     for (name, v) in [("width", width), ("height", height)] {
         if v <= 0 || v > MAX_RESOLUTION as i64 {
             return Err(Error::scene(
@@ -245,16 +349,41 @@ pub(super) fn film_desc(o: &Object) -> Result<FilmDesc> {
             ));
         }
     }
-    if width as u64 * height as u64 > MAX_PIXELS {
+    // Mitsuba reads the crop parameters as unsigned integers and refuses a window that
+    // leaves the film; an empty window renders nothing, and penumbra refuses it.
+    let inside = crop_x >= 0
+        && crop_y >= 0
+        && crop_width > 0
+        && crop_height > 0
+        && crop_x + crop_width <= width
+        && crop_y + crop_height <= height;
+    if !inside {
         return Err(Error::scene(
             &o.location,
-            format!("film of {width}x{height} pixels exceeds the limit of {MAX_PIXELS} pixels"),
+            format!(
+                "invalid crop window: crop_offset ({crop_x}, {crop_y}) + crop size ({crop_width}, {crop_height}) must lie within the film's {width}x{height} pixels, and the crop must not be empty"
+            ),
+        ));
+    }
+    // What is rendered and held in memory is the crop window.
+    if crop_width as u64 * crop_height as u64 > MAX_PIXELS {
+        return Err(Error::scene(
+            &o.location,
+            format!(
+                "film of {crop_width}x{crop_height} pixels exceeds the limit of {MAX_PIXELS} pixels"
+            ),
         ));
     }
     let mut rfilter = None;
     for Child { object: c, .. } in &o.children {
         match c.tag.as_str() {
             "rfilter" if rfilter.is_none() => rfilter = Some(rfilter_desc(c)?),
+            "rfilter" => {
+                return Err(Error::scene(
+                    &c.location,
+                    "a film can only have one reconstruction filter (as in Mitsuba)",
+                ))
+            }
             _ => return Err(unexpected_child(o, c)),
         }
     }
@@ -263,7 +392,10 @@ pub(super) fn film_desc(o: &Object) -> Result<FilmDesc> {
     Ok(FilmDesc {
         width: width as u32,
         height: height as u32,
+        crop_offset: (crop_x as u32, crop_y as u32),
+        crop_size: (crop_width as u32, crop_height as u32),
         rfilter,
+        half,
     })
 }
 

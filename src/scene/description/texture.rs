@@ -1,4 +1,5 @@
-//! Textures (`bitmap`, `checkerboard`, `mesh_attribute`, `rawconstant`, `srgb`, `uniform`)
+//! Textures (`bitmap`, `checkerboard`, `mesh_attribute`, `rawconstant`, `srgb`, `uniform`,
+//! `volume`)
 //! and texture-valued parameters: a parameter Mitsuba reads with `get_texture` can be a
 //! colour, a float, a `<spectrum>`, or a nested or referenced `<texture>`.
 
@@ -27,6 +28,8 @@ pub enum TextureDesc {
         name: String,
         scale: f64,
     },
+    /// Mitsuba's `volume` texture: a volume looked up at the shading point.
+    Volume(VolumeDesc),
 }
 
 /// Mitsuba's `bitmap` texture.
@@ -84,6 +87,7 @@ impl TextureDesc {
                 color0.files(out);
                 color1.files(out);
             }
+            TextureDesc::Volume(VolumeDesc::Grid { filename, .. }) => out.push(filename),
             _ => {}
         }
     }
@@ -283,6 +287,19 @@ pub(super) fn texture_desc(cx: &Ctx, o: &Object, role: ColorRole) -> Result<Text
             TextureDesc::rgb(c)
         }
         "uniform" => TextureDesc::value(p.float("value", 1.0)?),
+        "volume" => {
+            // Mitsuba reads `volume` as an object only (a <float> or <rgb> is refused there).
+            if let Some((v, loc)) = p.take("volume") {
+                return Err(p.wrong_type("volume", v, loc, "a <volume>"));
+            }
+            let v = ch.named("volume").ok_or_else(|| {
+                Error::scene(
+                    &o.location,
+                    format!("{} needs a <volume name=\"volume\">", describe(o)),
+                )
+            })?;
+            TextureDesc::Volume(volume_desc(cx, v)?)
+        }
         _ => return Err(unsupported_plugin(o)),
     };
     cx.finish(p)?;
