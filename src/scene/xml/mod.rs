@@ -1,39 +1,67 @@
 //! Mitsuba 3 XML scene files, parsed into a generic object tree.
 //!
-//! This module reads the XML syntax of a Mitsuba 3 scene and resolves everything that is
-//! independent of the plugins themselves:
+//! This module reads a scene file as Mitsuba 3.9.1's parser (`src/core/parser.cpp`) does, and
+//! accepts and refuses what it accepts and refuses, for everything that is independent of
+//! specific plugins:
 //!
-//! - `<path value="..."/>` and `<include filename="..."/>`, with Mitsuba's file resolver
-//!   ([`FileResolver`]: the including file's directory first, then the `<path>`s, the scene's
-//!   directory and the working directory; include cycles rejected),
-//! - `<default name="..." value="..."/>` and `$name` substitution in every attribute value,
-//!   with command-line overrides taking precedence over the file's defaults,
-//! - `<ref id="..."/>` (and `<alias id="..." as="..."/>`), resolved after the whole scene is
-//!   parsed, as Mitsuba does: a reference may name an object declared later in the file or in
-//!   a later include, and every reference to an id yields the very same [`Arc<Object>`];
-//!   reference cycles are rejected,
+//! - the XML syntax itself, with pugixml's leniencies ([`markup`]: comments containing `--`,
+//!   a DOCTYPE, unknown entities, text anywhere, repeated attributes, ...); every node but
+//!   elements is ignored, text included,
+//! - `<path value="..."/>` and `<include filename="..." name="..."/>`, with Mitsuba's file
+//!   resolver ([`FileResolver`]: the including file's directory first, then the `<path>`s,
+//!   the scene's directory and the working directory); an included file needs its own
+//!   `version`; a `<scene>` root contributes its objects (its properties and references are
+//!   dropped, as in Mitsuba), another root that one object; at most [`MAX_INCLUDE_DEPTH`]
+//!   files deep, include cycles rejected,
+//! - `<default name="..." value="..."/>` and `$name` substitution in every attribute value
+//!   (Mitsuba's: longest names first, anywhere in the value, `\$` for a literal `$`), with
+//!   command-line overrides taking precedence over the file's defaults; an override the scene
+//!   never uses is a warning (see below),
+//! - `<ref id="..."/>`, resolved after the whole scene is parsed, as Mitsuba does: a
+//!   reference may name an object declared later in the file or in a later include, and every
+//!   reference to an id yields the very same [`Arc<Object>`]; reference cycles are rejected;
+//!   `<alias id="..." as="..."/>` names an id already declared (in the same file or the files
+//!   it included),
 //! - `<transform>` blocks, composed exactly like Mitsuba does (each operation `M` is applied
 //!   after the previous ones: `T = M * T`),
 //! - typed properties (`integer`, `float`, `boolean`, `string`, `rgb`, `point`, `vector`,
-//!   `transform`), parsed into [`Value`]s.
+//!   `spectrum`, `transform`), parsed into [`Value`]s with Mitsuba's number syntax ([`values`]),
+//! - names: a property's name may be used once in an object; a nested object whose name is
+//!   already used replaces that entry (Mitsuba's `Properties::set(.., false)`; penumbra warns),
+//! - the in-memory upgrade of files older than version 2.0.0 ([`upgrade`]).
 //!
 //! It knows nothing about specific plugins: a later stage turns the [`Object`] tree into typed
 //! scene objects and rejects unknown plugins and parameters.
 //!
+//! Deliberate differences from Mitsuba, all refusals of input no real scene contains:
+//! non-finite numbers (`inf`, `nan`, `1e999`, or a transform that overflows) are refused,
+//! since nothing downstream can use them; the main file's root must be `<scene>` (Mitsuba
+//! would load a lone `<shape version="...">` as that object) and `<scene>` cannot be nested;
+//! the `type` of a `<scene>` can only be `scene`; names and values must be UTF-8. And one
+//! acceptance: an override (`-D`) that the scene never uses is a warning, where Mitsuba's
+//! default `ParserConfig::unused_parameters` makes it an error; penumbra's own tools pass
+//! `-D res=...`, `spp` and `integrator` to whole sets of scenes (the test suites, `study`),
+//! not all of which use them.
+//!
 //! Every [`Object`] and [`Property`] carries the [`Location`] of its element, and every error
 //! about an element names its tag, its `type` (if any) and its location. The parser is meant
-//! to face hostile input: it never panics, bounds its recursion, and rejects deeply nested
-//! documents before building them.
+//! to face hostile input: it never panics, bounds its recursion, the XML tree it builds and
+//! the work and text that `$`-substitution may produce.
+
+mod markup;
+mod upgrade;
+mod values;
 
 use super::resolver::FileResolver;
 use crate::error::{Error, Location, Result};
 use glam::{DMat3, DMat4, DVec3};
-use roxmltree::{Node, NodeType};
+use markup::{Element, Markup};
 use std::borrow::Cow;
 use std::cell::Cell;
 use std::collections::HashMap;
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
+use values::{parse_float, parse_integer, parse_version, tokenize};
 
 /// Tags that declare a plugin object (`<shape type="...">` and so on).
 /// (`<spectrum>` is a property, or an object when it has a `type`.)
@@ -58,16 +86,9 @@ const TRANSFORM_OPS: &[&str] = &["translate", "rotate", "scale", "matrix", "look
 /// Maximum nesting depth of elements below `<scene>`, counted across included files.
 const MAX_NESTING_DEPTH: usize = 64;
 
-/// Maximum length of a chain of `<include>`s.
-const MAX_INCLUDE_DEPTH: usize = 32;
-
-/// Maximum XML element depth of one file, checked by a cheap scan before the document is
-/// built, so that absurdly deep input is rejected without building it.
-const MAX_XML_DEPTH: usize = 128;
-
-/// Maximum number of attributes of one element, checked by the same scan (the XML parser's
-/// duplicate-attribute check is quadratic in it).
-const MAX_XML_ATTRIBUTES: usize = 256;
+/// Maximum number of files in a chain of `<include>`s, the main file included: Mitsuba's
+/// `ParserConfig::max_include_depth`.
+const MAX_INCLUDE_DEPTH: usize = 15;
 
 /// Longest chain of objects reached through `<ref>`s while resolving one object (nested
 /// objects count too): bounds the resolver's recursion on hostile input.
@@ -76,6 +97,11 @@ const MAX_REFERENCE_DEPTH: usize = 512;
 /// Total number of bytes that `$name` substitution may produce while loading one scene; this
 /// stops defaults that expand into each other from blowing up exponentially.
 const SUBSTITUTION_BUDGET: usize = 64 << 20;
+
+/// Total number of bytes that `$name` substitution may scan while loading one scene (Mitsuba
+/// searches each attribute value once per parameter, so many defaults and long values would
+/// otherwise take quadratic time).
+const SUBSTITUTION_WORK: usize = 1 << 31;
 
 /// The value of a property.
 #[derive(Debug, Clone, PartialEq)]
@@ -171,20 +197,21 @@ pub struct Document {
 /// Loads the scene file at `path` and returns its `<scene>` root.
 ///
 /// `overrides` are `(name, value)` pairs (the CLI's `-D name=value`) that take precedence
-/// over the file's `<default>`s; if a name is given twice, the last one wins.
+/// over the file's `<default>`s; if a name is given twice, the last one wins. One that no
+/// `$name` of the scene uses gets a warning.
 ///
-/// Errors: [`Error::Io`] if the file cannot be read, [`Error::Xml`] if it is not UTF-8 or not
-/// well-formed XML, [`Error::Scene`] for everything the scene says that is not accepted.
+/// Errors: [`Error::Io`] if the file cannot be read, [`Error::Xml`] if it is not well-formed
+/// XML (as pugixml sees it), [`Error::Scene`] for everything the scene says that is not
+/// accepted.
 pub fn load_file(path: &Path, overrides: &[(String, String)]) -> Result<Document> {
-    let text =
+    let bytes =
         crate::io::read_file_limited(path, crate::io::MAX_SCENE_FILE_BYTES).map_err(|cause| {
             Error::Io {
                 path: path.to_path_buf(),
                 cause,
             }
         })?;
-    let text = decode_utf8(path, text)?;
-    load_str(&text, path, overrides)
+    load_bytes(&bytes, path, overrides)
 }
 
 /// Parses the scene in `text` and returns its `<scene>` root.
@@ -193,15 +220,21 @@ pub fn load_file(path: &Path, overrides: &[(String, String)]) -> Result<Document
 /// relative `<include>`s (it need not exist if there are none). `overrides` are as in
 /// [`load_file`].
 pub fn load_str(text: &str, path: &Path, overrides: &[(String, String)]) -> Result<Document> {
-    let mut file = SourceFile::new(path, text);
+    load_bytes(text.as_bytes(), path, overrides)
+}
+
+fn load_bytes(bytes: &[u8], path: &Path, overrides: &[(String, String)]) -> Result<Document> {
+    let text = markup::to_utf8(bytes);
+    let mut file = SourceFile::new(path, &text);
     let mut loader = Loader::new(overrides, FileResolver::for_scene(&file.dir));
     let doc = parse_document(&file)?;
     loader.include_stack.push(IncludeFrame {
         key: include_key(path),
         shown: path.to_path_buf(),
     });
-    let raw = loader.load_root(&mut file, doc.root_element())?;
+    let raw = loader.load_root(&mut file, doc.root())?;
     let root = loader.resolve_root(raw)?;
+    loader.warn_unused_overrides();
     Ok(Document {
         root,
         resolver: loader.resolver,
@@ -209,26 +242,55 @@ pub fn load_str(text: &str, path: &Path, overrides: &[(String, String)]) -> Resu
     })
 }
 
+/// A `$name` parameter: a command-line override or a `<default>`.
+struct Parameter {
+    /// The name, without the `$`.
+    name: String,
+    value: String,
+    /// Whether it replaced something (only overrides are checked).
+    used: bool,
+    /// Whether it came from the command line.
+    is_override: bool,
+}
+
 /// The document-order state of a load: parameters, parsed objects, declared ids, the
 /// include chain and the file resolver.
 struct Loader {
-    /// `$name` values: overrides first, then `<default>`s (the first definition wins).
-    params: HashMap<String, String>,
+    /// The `$name` parameters, longest name first (Mitsuba's order): overrides, then the
+    /// `<default>`s (the first definition of a name wins).
+    params: Vec<Parameter>,
     /// Every object parsed so far (nested ones included), by index; references point here.
     arena: Vec<RawObject>,
-    /// Every id declared so far: an object of `arena`, or an alias of another id.
+    /// Every id declared so far, but those of included `<scene>` roots.
     ids: HashMap<String, IdDecl>,
+    /// Ids declared so far (a counter: the order of declarations).
+    id_count: usize,
+    /// The files being parsed, outermost first, with the ids only they can see.
+    scopes: Vec<FileScope>,
     /// The chain of files being included, outermost first.
     include_stack: Vec<IncludeFrame>,
     /// Bytes that `$name` substitution may still produce.
     substitution_budget: usize,
+    /// Bytes that `$name` substitution may still scan.
+    substitution_work: usize,
     /// Where relative file names are looked up (changes with `<path>` and `<include>`).
     resolver: FileResolver,
-    /// The nesting depth of the children of the current file's `<scene>` root, where
-    /// `<path>` may appear.
+    /// The nesting depth of the children of the current file's root element, where `<path>`
+    /// may appear.
     file_root_depth: usize,
     /// Warnings met while parsing.
     warnings: Vec<String>,
+}
+
+/// What a file being parsed sees of the ids: in Mitsuba each included file is parsed into a
+/// state of its own, merged into the including file's afterwards.
+struct FileScope {
+    /// The first id declaration of this file (`IdDecl::order`): an `<alias>` can only name
+    /// ids declared from there on (in this file or the files it included).
+    first_id: usize,
+    /// The ids of an included `<scene>` root and its aliases: they exist while the file is
+    /// parsed and are dropped with its root, as in Mitsuba.
+    root_ids: HashMap<String, Location>,
 }
 
 /// An object as parsed, before its references are resolved.
@@ -258,18 +320,18 @@ enum RawChild {
 }
 
 /// What a declared id names.
+#[derive(Clone, Copy)]
 enum IdTarget {
     Object(usize),
-    /// `<alias id="of" as="...">`: resolved after parsing, like references.
-    Alias {
-        of: String,
-        desc: String,
-    },
+    /// The main file's `<scene>` root (a reference to it is a cycle).
+    Root,
 }
 
 struct IdDecl {
     target: IdTarget,
     location: Location,
+    /// The order of declaration (see [`FileScope::first_id`]).
+    order: usize,
 }
 
 /// How far the resolution of an arena object has got.
@@ -294,8 +356,8 @@ struct SourceFile<'t> {
     path: PathBuf,
     /// The directory relative `<include>`s are resolved against.
     dir: PathBuf,
-    /// The file's text.
-    text: &'t str,
+    /// The file's text (UTF-8 but for what the XML reader skips).
+    text: &'t [u8],
     /// Whether the file declares a version before 2.0.0 and gets Mitsuba's in-memory upgrade.
     upgrade: bool,
     /// The last position mapped to a location, as `(byte offset, line, column)`: elements are
@@ -304,7 +366,7 @@ struct SourceFile<'t> {
 }
 
 impl<'t> SourceFile<'t> {
-    fn new(path: &Path, text: &'t str) -> Self {
+    fn new(path: &Path, text: &'t [u8]) -> Self {
         SourceFile {
             path: path.to_path_buf(),
             dir: path.parent().map(Path::to_path_buf).unwrap_or_default(),
@@ -314,10 +376,10 @@ impl<'t> SourceFile<'t> {
         }
     }
 
-    /// The location of byte offset `pos`, with roxmltree's conventions: 1-based lines, and
-    /// 1-based columns counted in characters.
+    /// The location of byte offset `pos`: 1-based lines, and 1-based columns counted in
+    /// characters.
     fn location(&self, pos: usize) -> Location {
-        let bytes = self.text.as_bytes();
+        let bytes = self.text;
         let pos = pos.min(bytes.len());
         let (cursor_pos, cursor_line, cursor_col) = self.cursor.get();
         let (start, mut line, mut col) = if pos >= cursor_pos {
@@ -342,100 +404,21 @@ impl<'t> SourceFile<'t> {
         }
     }
 
-    /// The location of a node's start.
-    fn node_location(&self, node: Node) -> Location {
-        self.location(node.range().start)
+    /// The location of an element's start.
+    fn node_location(&self, node: Element) -> Location {
+        self.location(node.start())
     }
 }
 
-/// Turns the bytes of a file into text, or explains where it is not UTF-8.
-fn decode_utf8(path: &Path, bytes: Vec<u8>) -> Result<String> {
-    String::from_utf8(bytes).map_err(|e| {
-        let offset = e.utf8_error().valid_up_to();
-        let valid = e.as_bytes().get(..offset).unwrap_or_default();
-        let line = 1 + valid.iter().filter(|&&b| b == b'\n').count();
+/// Parses `file`'s text as XML.
+fn parse_document<'t>(file: &SourceFile<'t>) -> Result<Markup<'t>> {
+    markup::parse(file.text).map_err(|e| {
+        let location = file.location(e.offset);
         Error::Xml {
-            path: path.to_path_buf(),
-            message: format!(
-                "the file is not valid UTF-8 (invalid byte at line {line}, byte offset {offset})"
-            ),
-        }
-    })
-}
-
-/// Parses `file`'s text as XML, after rejecting absurd nesting or attribute counts.
-fn parse_document<'t>(file: &SourceFile<'t>) -> Result<roxmltree::Document<'t>> {
-    if let Some((pos, problem)) = precheck(file.text) {
-        let location = file.location(pos);
-        return Err(Error::Xml {
             path: file.path.clone(),
-            message: format!("{problem} (at {}:{})", location.line, location.col),
-        });
-    }
-    roxmltree::Document::parse(file.text).map_err(|e| Error::Xml {
-        path: file.path.clone(),
-        message: e.to_string(),
-    })
-}
-
-/// Scans XML text for an element opened more than [`MAX_XML_DEPTH`] levels deep or with more
-/// than [`MAX_XML_ATTRIBUTES`] attributes, and returns its byte offset and the problem.
-///
-/// This is a cheap pre-check (it follows comments, CDATA, processing instructions and quoted
-/// attribute values, which is exact for well-formed documents); on malformed input it may
-/// give up and return `None`, leaving the diagnosis to the XML parser.
-fn precheck(text: &str) -> Option<(usize, String)> {
-    let mut i = 0usize;
-    let mut depth = 0usize;
-    loop {
-        i += text.get(i..)?.find('<')?;
-        let rest = text.get(i..)?;
-        let skip = if rest.starts_with("<!--") {
-            rest.find("-->")? + 3
-        } else if rest.starts_with("<![CDATA[") {
-            rest.find("]]>")? + 3
-        } else if rest.starts_with("<?") {
-            rest.find("?>")? + 2
-        } else if rest.starts_with("<!") {
-            rest.find('>')? + 1
-        } else if rest.starts_with("</") {
-            depth = depth.saturating_sub(1);
-            rest.find('>')? + 1
-        } else {
-            let (end, attributes) = start_tag_end(rest)?;
-            if attributes > MAX_XML_ATTRIBUTES {
-                let problem = format!("an element has more than {MAX_XML_ATTRIBUTES} attributes");
-                return Some((i, problem));
-            }
-            if end == 0 || rest.as_bytes().get(end - 1) != Some(&b'/') {
-                depth += 1;
-                if depth > MAX_XML_DEPTH {
-                    let problem =
-                        format!("elements are nested more than {MAX_XML_DEPTH} levels deep");
-                    return Some((i, problem));
-                }
-            }
-            end + 1
-        };
-        i += skip;
-    }
-}
-
-/// The offset of the `>` that closes the start tag at the beginning of `tag`, skipping quoted
-/// attribute values, and the number of attributes (`=` signs outside quotes) before it.
-fn start_tag_end(tag: &str) -> Option<(usize, usize)> {
-    let mut quote = None;
-    let mut attributes = 0;
-    for (i, b) in tag.bytes().enumerate() {
-        match (quote, b) {
-            (None, b'"' | b'\'') => quote = Some(b),
-            (None, b'=') => attributes += 1,
-            (None, b'>') => return Some((i, attributes)),
-            (Some(q), _) if q == b => quote = None,
-            _ => {}
+            message: format!("{} (at {}:{})", e.message, location.line, location.col),
         }
-    }
-    None
+    })
 }
 
 /// The canonical form of a path for cycle detection (the path itself if it does not exist).
@@ -443,10 +426,25 @@ fn include_key(path: &Path) -> PathBuf {
     std::fs::canonicalize(path).unwrap_or_else(|_| path.to_path_buf())
 }
 
-/// An element with its attributes upgraded (for old files) and `$`-substituted.
-struct Elem<'a, 'input> {
-    node: Node<'a, 'input>,
+/// The raw (not `$`-substituted) value of an element's first attribute `name`, as Mitsuba
+/// reads the `version` of a file's root.
+fn raw_attribute(file: &SourceFile, node: Element, name: &str) -> Result<Option<String>> {
+    match node.attributes().find(|a| a.name() == name) {
+        Some(attr) => attr.value().map(|v| Some(v.into_owned())).map_err(|e| {
+            Error::scene(
+                &file.location(e.offset),
+                format!("{} in <{}>", e.message, node.name()),
+            )
+        }),
+        None => Ok(None),
+    }
+}
+
+/// An element with its attributes `$`-substituted.
+struct Elem<'m, 't> {
+    node: Element<'m, 't>,
     tag: String,
+    /// The attributes in document order; a name may repeat (the first one counts).
     attrs: Vec<(String, String)>,
     location: Location,
     /// `<tag type=".." id=".." name="..">`, for messages.
@@ -489,87 +487,92 @@ impl Elem<'_, '_> {
             .ok_or_else(|| self.error(format!("missing attribute \"{name}\" in {}", self.desc)))
     }
 
-    /// The `name` attribute of a property, which must be present and valid.
+    /// The `name` of a property, which must be present (it may be empty, as in Mitsuba).
     fn property_name(&self) -> Result<String> {
-        let name = self.require("name")?;
-        self.check_name(name)?;
-        Ok(name.to_string())
+        Ok(self.require("name")?.to_string())
     }
 
-    /// Checks a parameter name (`name` attribute), as Mitsuba does.
-    fn check_name(&self, name: &str) -> Result<()> {
-        self.check_identifier("name", name)
-    }
-
-    /// Checks an identifier (`id` attribute), as Mitsuba does.
-    fn check_id(&self, id: &str) -> Result<()> {
-        self.check_identifier("id", id)
-    }
-
-    /// A `name` or `id` must be non-empty and must not start with '_' (Mitsuba reserves it).
-    fn check_identifier(&self, what: &str, value: &str) -> Result<()> {
-        if value.is_empty() {
-            Err(self.error(format!("empty {what} in {}", self.desc)))
-        } else if value.starts_with('_') {
-            Err(self.error(format!(
-                "invalid {what} \"{value}\" in {}: leading underscores are reserved",
-                self.desc
-            )))
-        } else {
-            Ok(())
-        }
+    /// The `name` of a nested object, reference or include: an empty one is no name.
+    fn child_name(&self) -> Option<String> {
+        self.get("name")
+            .filter(|name| !name.is_empty())
+            .map(str::to_string)
     }
 
     /// Parses attribute `name` as a finite float.
     fn float_attr(&self, name: &str) -> Result<f64> {
-        let text = self.require(name)?;
-        parse_f64(text).map_err(|m| self.error(format!("{m} in {}", self.desc)))
+        self.float(self.require(name)?)
     }
 
-    /// Parses a 3-vector given either as `value="a"` / `value="x y z"` or as `x`, `y`, `z`
-    /// attributes, each defaulting to `default` (Mitsuba also treats an empty one as absent).
-    fn xyz(&self, default: f64) -> Result<DVec3> {
+    /// Parses a finite float with Mitsuba's syntax.
+    fn float(&self, text: &str) -> Result<f64> {
+        match parse_float(text) {
+            Some(v) if v.is_finite() => Ok(v),
+            Some(_) => Err(self.error(format!(
+                "non-finite floating point value \"{}\" in {} (penumbra refuses infinities and NaNs)",
+                shorten(text),
+                self.desc
+            ))),
+            None => Err(self.error(format!(
+                "could not parse floating point value \"{}\" in {}",
+                shorten(text),
+                self.desc
+            ))),
+        }
+    }
+
+    /// Mitsuba's `expand_value_to_xyz`: a `value` of one or three numbers stands for `x`,
+    /// `y` and `z`; returns the three components as written (`None` where absent).
+    fn xyz_attrs(&self) -> Result<[Option<String>; 3]> {
         if let Some(value) = self.get("value") {
             if ["x", "y", "z"].iter().any(|k| self.get(k).is_some()) {
                 return Err(self.error(format!(
-                    "the \"value\" attribute cannot be mixed with \"x\"/\"y\"/\"z\" in {}",
+                    "cannot mix \"value\" and \"x\"/\"y\"/\"z\" attributes in {}",
                     self.desc
                 )));
             }
-            let numbers = self.numbers(value)?;
-            return match numbers.as_slice() {
-                [v] => Ok(DVec3::splat(*v)),
-                [x, y, z] => Ok(DVec3::new(*x, *y, *z)),
+            let tokens: Vec<&str> = tokenize(value).collect();
+            return match tokens.as_slice() {
+                [v] => Ok([
+                    Some(v.to_string()),
+                    Some(v.to_string()),
+                    Some(v.to_string()),
+                ]),
+                [x, y, z] => Ok([
+                    Some(x.to_string()),
+                    Some(y.to_string()),
+                    Some(z.to_string()),
+                ]),
                 _ => Err(self.error(format!(
-                    "\"value\" must have 1 or 3 components, found {} in {}",
-                    numbers.len(),
+                    "the \"value\" attribute must have exactly 1 or 3 elements, found {} in {}",
+                    tokens.len(),
                     self.desc
                 ))),
             };
         }
+        Ok(["x", "y", "z"].map(|k| self.get(k).map(str::to_string)))
+    }
+
+    /// Parses the components of [`Elem::xyz_attrs`], each defaulting to `default` when absent
+    /// (a present but empty one is 0, as Mitsuba reads it).
+    fn xyz(&self, parts: &[Option<String>; 3], default: f64) -> Result<DVec3> {
         let mut v = [default; 3];
-        for (slot, key) in v.iter_mut().zip(["x", "y", "z"]) {
-            match self.get(key) {
-                Some(text) if !text.is_empty() => {
-                    *slot =
-                        parse_f64(text).map_err(|m| self.error(format!("{m} in {}", self.desc)))?;
-                }
-                _ => {}
+        for (slot, part) in v.iter_mut().zip(parts) {
+            if let Some(text) = part {
+                *slot = self.float(text)?;
             }
         }
         Ok(DVec3::from_array(v))
     }
 
-    /// Parses a list of finite floats separated by whitespace and/or commas.
+    /// Parses a list of finite floats separated by spaces and/or commas.
     fn numbers(&self, text: &str) -> Result<Vec<f64>> {
-        tokenize(text)
-            .map(|token| parse_f64(token).map_err(|m| self.error(format!("{m} in {}", self.desc))))
-            .collect()
+        tokenize(text).map(|token| self.float(token)).collect()
     }
 
-    /// Parses attribute `name` as exactly three numbers (for `<lookat>`).
-    fn vec3_attr(&self, name: &str) -> Result<DVec3> {
-        let numbers = self.numbers(self.require(name)?)?;
+    /// Parses attribute text as exactly three numbers (for `<lookat>`).
+    fn vec3(&self, name: &str, text: &str) -> Result<DVec3> {
+        let numbers = self.numbers(text)?;
         match numbers.as_slice() {
             [x, y, z] => Ok(DVec3::new(*x, *y, *z)),
             _ => Err(self.error(format!(
@@ -579,34 +582,6 @@ impl Elem<'_, '_> {
             ))),
         }
     }
-}
-
-/// Splits a list of numbers at whitespace and commas.
-fn tokenize(text: &str) -> impl Iterator<Item = &str> {
-    text.split(|c: char| c == ',' || c.is_whitespace())
-        .filter(|token| !token.is_empty())
-}
-
-/// Parses a finite `f64` (surrounding whitespace allowed).
-fn parse_f64(text: &str) -> std::result::Result<f64, String> {
-    match text.trim().parse::<f64>() {
-        Ok(v) if v.is_finite() => Ok(v),
-        Ok(_) => Err(format!(
-            "non-finite floating point value \"{}\"",
-            shorten(text)
-        )),
-        Err(_) => Err(format!(
-            "could not parse floating point value \"{}\"",
-            shorten(text)
-        )),
-    }
-}
-
-/// Parses an `i64` (surrounding whitespace allowed).
-fn parse_i64(text: &str) -> std::result::Result<i64, String> {
-    text.trim()
-        .parse::<i64>()
-        .map_err(|_| format!("could not parse integer value \"{}\"", shorten(text)))
 }
 
 /// Cuts long attribute values down for messages.
@@ -630,194 +605,312 @@ fn describe<'s>(tag: &str, attrs: impl Iterator<Item = (&'s str, &'s str)> + Clo
     desc
 }
 
-/// Mitsuba's upgrade of pre-2.0 parameter names: `camelCase` becomes `camel_case`, with the
-/// same quirks as Mitsuba's loop (a run of capitals after a lowercase letter is lowered).
-fn camel_to_snake(name: &str) -> String {
-    let mut bytes = name.as_bytes().to_vec();
-    let mut i = 0;
-    while i + 1 < bytes.len() {
-        let lower = bytes.get(i).is_some_and(u8::is_ascii_lowercase);
-        let upper_next = bytes.get(i + 1).is_some_and(u8::is_ascii_uppercase);
-        if lower && upper_next {
-            bytes.insert(i + 1, b'_');
-            i += 2;
-            while let Some(b) = bytes.get_mut(i) {
-                if !b.is_ascii_uppercase() {
-                    break;
-                }
-                b.make_ascii_lowercase();
-                i += 1;
-            }
-        }
-        i += 1;
-    }
-    // Only ASCII bytes were inserted or changed, so this is still UTF-8.
-    String::from_utf8(bytes).unwrap_or_else(|_| name.to_string())
+/// [`describe`] of an element as written (values not substituted).
+fn describe_node(node: Element) -> String {
+    let attrs: Vec<(&str, String)> = node
+        .attributes()
+        .map(|a| (a.name(), a.value().map(Cow::into_owned).unwrap_or_default()))
+        .collect();
+    describe(node.name(), attrs.iter().map(|(k, v)| (*k, v.as_str())))
 }
 
-/// Parses a version `"major.minor.patch"` as Mitsuba does.
-fn parse_version(text: &str) -> Option<(u32, u32, u32)> {
-    let mut parts = text
-        .split(['.', ' '])
-        .filter(|p| !p.is_empty())
-        .map(|p| p.parse::<u32>().ok());
-    let version = (parts.next()??, parts.next()??, parts.next()??);
-    match parts.next() {
-        None => Some(version),
-        Some(_) => None,
+/// An entry of an object: a property or a child, in document order (Mitsuba keeps both in
+/// one `Properties` list, where a child may replace a property of the same name).
+enum Entry {
+    Property(Property),
+    Child(RawChild),
+}
+
+impl Entry {
+    fn name(&self) -> Option<&str> {
+        match self {
+            Entry::Property(p) => Some(&p.name),
+            Entry::Child(RawChild::Object { name, .. } | RawChild::Ref { name, .. }) => {
+                name.as_deref()
+            }
+        }
+    }
+
+    fn set_name(&mut self, new_name: String) {
+        match self {
+            Entry::Property(p) => p.name = new_name,
+            Entry::Child(RawChild::Object { name, .. } | RawChild::Ref { name, .. }) => {
+                *name = Some(new_name)
+            }
+        }
     }
 }
 
 /// The properties and children of an object under construction.
 #[derive(Default)]
 struct Body {
-    properties: Vec<Property>,
-    children: Vec<RawChild>,
-    /// Names used so far by properties and named children, with where.
-    names: HashMap<String, Location>,
+    entries: Vec<Entry>,
+    /// The entry of each name used so far.
+    names: HashMap<String, usize>,
 }
 
 impl Body {
-    /// Records that `name` is used at `elem`; each name may be used once per object.
-    fn claim(&mut self, name: &str, elem: &Elem, parent_desc: &str) -> Result<()> {
-        if let Some(previous) = self.names.get(name) {
-            return Err(elem.error(format!(
-                "duplicate name \"{name}\" in {parent_desc}: {} repeats the name used at {previous}",
-                elem.desc
-            )));
+    fn push(&mut self, entry: Entry) {
+        if let Some(name) = entry.name() {
+            self.names.insert(name.to_string(), self.entries.len());
         }
-        self.names.insert(name.to_string(), elem.location.clone());
+        self.entries.push(entry);
+    }
+
+    /// Adds a property or a named reference: its name must be new, as Mitsuba's
+    /// `Properties::set` requires.
+    fn add_unique(&mut self, entry: Entry, elem: &Elem, parent_desc: &str) -> Result<()> {
+        if let Some(name) = entry.name() {
+            if let Some(&i) = self.names.get(name) {
+                let previous = match self.entries.get(i) {
+                    Some(Entry::Property(p)) => p.location.to_string(),
+                    _ => "an earlier element".to_string(),
+                };
+                return Err(elem.error(format!(
+                    "duplicate name \"{name}\" in {parent_desc}: {} repeats the name used at {previous}",
+                    elem.desc
+                )));
+            }
+        }
+        self.push(entry);
         Ok(())
     }
 
-    fn add_property(&mut self, property: Property, elem: &Elem, parent_desc: &str) -> Result<()> {
-        self.claim(&property.name, elem, parent_desc)?;
-        self.properties.push(property);
-        Ok(())
+    /// Adds a nested object: one whose name is already used replaces that entry, where it is
+    /// (Mitsuba's `Properties::set(name, .., false)`); returns whether it replaced one.
+    fn add_object(&mut self, entry: Entry) -> bool {
+        if let Some(&i) = entry.name().and_then(|name| self.names.get(name)) {
+            if let Some(slot) = self.entries.get_mut(i) {
+                *slot = entry;
+                return true;
+            }
+        }
+        self.push(entry);
+        false
     }
 
-    fn add_child(&mut self, child: RawChild, elem: &Elem, parent_desc: &str) -> Result<()> {
-        let name = match &child {
-            RawChild::Object { name, .. } | RawChild::Ref { name, .. } => name,
+    /// Renames entry `i`, unless the new name is taken (then nothing changes).
+    fn rename(&mut self, i: usize, new_name: String) {
+        if self.names.contains_key(&new_name) {
+            return;
+        }
+        let Some(entry) = self.entries.get_mut(i) else {
+            return;
         };
-        if let Some(name) = name {
-            self.claim(name, elem, parent_desc)?;
+        if let Some(old) = entry.name() {
+            self.names.remove(old);
         }
-        self.children.push(child);
-        Ok(())
+        self.names.insert(new_name.clone(), i);
+        entry.set_name(new_name);
+    }
+
+    /// Removes entry `i`.
+    fn remove(&mut self, i: usize) {
+        if i < self.entries.len() {
+            self.entries.remove(i);
+            self.names = self
+                .entries
+                .iter()
+                .enumerate()
+                .filter_map(|(j, e)| e.name().map(|n| (n.to_string(), j)))
+                .collect();
+        }
+    }
+
+    /// The properties and the children, each in document order.
+    fn split(self) -> (Vec<Property>, Vec<RawChild>) {
+        let mut properties = Vec::new();
+        let mut children = Vec::new();
+        for entry in self.entries {
+            match entry {
+                Entry::Property(p) => properties.push(p),
+                Entry::Child(c) => children.push(c),
+            }
+        }
+        (properties, children)
     }
 }
 
 impl Loader {
     fn new(overrides: &[(String, String)], resolver: FileResolver) -> Self {
+        let mut params: Vec<Parameter> = Vec::new();
+        for (name, value) in overrides {
+            match params.iter_mut().find(|p| &p.name == name) {
+                // The last override of a name wins.
+                Some(p) => p.value = value.clone(),
+                None => params.push(Parameter {
+                    name: name.clone(),
+                    value: value.clone(),
+                    used: false,
+                    is_override: true,
+                }),
+            }
+        }
+        // Longest first, so that `$ab` is not read as `$a` followed by `b` when both exist.
+        params.sort_by_key(|p| std::cmp::Reverse(p.name.len()));
         Loader {
-            params: overrides.iter().cloned().collect(),
+            params,
             arena: Vec::new(),
             ids: HashMap::new(),
+            id_count: 0,
+            scopes: vec![FileScope {
+                first_id: 0,
+                root_ids: HashMap::new(),
+            }],
             include_stack: Vec::new(),
             substitution_budget: SUBSTITUTION_BUDGET,
+            substitution_work: SUBSTITUTION_WORK,
             resolver,
             file_root_depth: 1,
             warnings: Vec::new(),
         }
     }
 
-    /// Replaces every `$name` in `value` (the longest run of `[A-Za-z0-9_]` after the `$`).
+    /// Mitsuba's `substitute_parameters`: for each parameter, longest name first, every
+    /// `$name` in the value that is not preceded by `\` is replaced (anywhere: `$ab` with only
+    /// `a` defined is the value of `a` followed by `b`); text a replacement brings in is seen
+    /// by the parameters after it. Then any `$` left that is not escaped is an undefined
+    /// parameter, and `\$` becomes `$`. Only values that contain a `$` are touched.
     fn substitute<'v>(&mut self, value: &'v str) -> std::result::Result<Cow<'v, str>, String> {
         if !value.contains('$') {
             return Ok(Cow::Borrowed(value));
         }
-        let mut out = String::with_capacity(value.len());
-        let mut rest = value;
-        while let Some((before, after)) = rest.split_once('$') {
-            out.push_str(before);
-            let len = after
-                .bytes()
-                .take_while(|b| b.is_ascii_alphanumeric() || *b == b'_')
-                .count();
-            // The name is ASCII, so `len` is a character boundary.
-            let (name, tail) = after.split_at_checked(len).unwrap_or((after, ""));
-            if name.is_empty() {
-                return Err(format!(
-                    "\"$\" not followed by a parameter name in \"{}\"",
-                    shorten(value)
-                ));
+        let mut text = value.to_string();
+        for param in &mut self.params {
+            let key = format!("${}", param.name);
+            let mut pos = 0;
+            loop {
+                let found = text.get(pos..).and_then(|rest| rest.find(&key));
+                // The bytes this search looked at.
+                let scanned = found.map_or(text.len().saturating_sub(pos), |f| f + key.len());
+                self.substitution_work =
+                    self.substitution_work.checked_sub(scanned).ok_or_else(|| {
+                        "$-substitution scans too much text (too many parameters and long values)"
+                            .to_string()
+                    })?;
+                let Some(found) = found else {
+                    break;
+                };
+                let at = pos + found;
+                if at > 0 && text.as_bytes().get(at - 1) == Some(&b'\\') {
+                    pos = at + key.len();
+                    continue;
+                }
+                text.replace_range(at..at + key.len(), &param.value);
+                param.used = true;
+                pos = at + param.value.len();
+                if text.len() > self.substitution_budget {
+                    return Err(format!(
+                        "$-substitution produces more than {} MiB of text",
+                        SUBSTITUTION_BUDGET >> 20
+                    ));
+                }
             }
-            let Some(replacement) = self.params.get(name) else {
-                return Err(format!("undefined parameter \"${name}\""));
-            };
-            out.push_str(replacement);
-            if out.len() > self.substitution_budget {
-                return Err(format!(
-                    "$-substitution produces more than {} MiB of text",
-                    SUBSTITUTION_BUDGET >> 20
-                ));
-            }
-            rest = tail;
         }
-        out.push_str(rest);
-        self.substitution_budget = self.substitution_budget.saturating_sub(out.len());
-        Ok(Cow::Owned(out))
+        let bytes = text.as_bytes();
+        for (i, &b) in bytes.iter().enumerate() {
+            if b == b'$' && !(i > 0 && bytes.get(i - 1) == Some(&b'\\')) {
+                let rest = text.get(i + 1..).unwrap_or_default();
+                let len = rest
+                    .bytes()
+                    .take_while(|b| b.is_ascii_alphanumeric() || *b == b'_')
+                    .count();
+                let name = rest.get(..len).unwrap_or_default();
+                return Err(format!("undefined parameter \"${name}\""));
+            }
+        }
+        let text = text.replace("\\$", "$");
+        self.substitution_budget = self.substitution_budget.saturating_sub(text.len());
+        Ok(Cow::Owned(text))
     }
 
-    /// Reads an element: its tag and attributes, upgraded for old files and substituted.
-    fn element<'a, 'input>(
-        &mut self,
-        file: &SourceFile,
-        node: Node<'a, 'input>,
-    ) -> Result<Elem<'a, 'input>> {
-        let location = file.node_location(node);
-        let raw_tag = node.tag_name().name();
-        let raw_desc = || describe(raw_tag, node.attributes().map(|a| (a.name(), a.value())));
-        if node.tag_name().namespace().is_some() {
-            return Err(Error::scene(
-                &location,
-                format!("namespaced element {} is not supported", raw_desc()),
+    /// Warns about parameters given on the command line that the scene never uses (Mitsuba
+    /// refuses them by default; see the module documentation).
+    fn warn_unused_overrides(&mut self) {
+        let unused: Vec<String> = self
+            .params
+            .iter()
+            .filter(|p| p.is_override && !p.used)
+            .map(|p| format!("${}={}", p.name, shorten(&p.value)))
+            .collect();
+        if !unused.is_empty() {
+            self.warnings.push(format!(
+                "unused parameters (no $name in the scene uses them; Mitsuba would refuse them): {}",
+                unused.join(", ")
             ));
         }
-        let tag = if file.upgrade && raw_tag == "lookAt" {
-            "lookat".to_string()
-        } else {
-            raw_tag.to_string()
-        };
+    }
+
+    /// Reads an element: its tag and `$`-substituted attributes.
+    fn element<'m, 't>(
+        &mut self,
+        file: &SourceFile,
+        node: Element<'m, 't>,
+    ) -> Result<Elem<'m, 't>> {
+        let location = file.node_location(node);
+        let tag = node.name();
         let mut attrs = Vec::new();
         for attr in node.attributes() {
-            if attr.namespace().is_some() {
-                return Err(Error::scene(
-                    &location,
-                    format!(
-                        "unexpected namespaced attribute \"{}\" in {}",
-                        attr.name(),
-                        raw_desc()
-                    ),
-                ));
-            }
             let name = attr.name();
-            let raw = if file.upgrade {
-                upgrade_attribute(node, &tag, name, attr.value())
-            } else {
-                Cow::Borrowed(attr.value())
-            };
+            let raw = attr.value().map_err(|e| {
+                let at = file.location(e.offset);
+                Error::scene(
+                    &at,
+                    format!(
+                        "{} (attribute \"{name}\" of <{tag}>, at line {}, column {})",
+                        e.message, at.line, at.col
+                    ),
+                )
+            })?;
             let value = self.substitute(&raw).map_err(|message| {
+                let raw_desc = describe_node(node);
                 Error::scene(
                     &location,
-                    format!("{message} in attribute \"{name}\" of {}", raw_desc()),
+                    format!("{message} in attribute \"{name}\" of {raw_desc}"),
                 )
             })?;
             attrs.push((name.to_string(), value.into_owned()));
         }
-        let desc = describe(&tag, attrs.iter().map(|(k, v)| (k.as_str(), v.as_str())));
+        let desc = describe(tag, attrs.iter().map(|(k, v)| (k.as_str(), v.as_str())));
         Ok(Elem {
             node,
-            tag,
+            tag: tag.to_string(),
             attrs,
             location,
             desc,
         })
     }
 
+    /// Reads a file root's `version` (required, not substituted) and notes whether the file
+    /// gets the pre-2.0 upgrade.
+    fn read_version(&self, file: &mut SourceFile, root: Element) -> Result<()> {
+        let location = file.node_location(root);
+        let Some(version) = raw_attribute(file, root, "version")? else {
+            return Err(Error::scene(
+                &location,
+                format!(
+                    "missing attribute \"version\" in root element <{}>",
+                    root.name()
+                ),
+            ));
+        };
+        let parsed = parse_version(&version).ok_or_else(|| {
+            Error::scene(
+                &location,
+                format!(
+                    "invalid version number \"{}\" in root element <{}> (expected major.minor.patch)",
+                    shorten(&version),
+                    root.name()
+                ),
+            )
+        })?;
+        file.upgrade = parsed < (2, 0, 0);
+        Ok(())
+    }
+
     /// Loads the `<scene>` root of the main file (references not yet resolved).
-    fn load_root(&mut self, file: &mut SourceFile, root: Node) -> Result<RawObject> {
+    fn load_root(&mut self, file: &mut SourceFile, root: Element) -> Result<RawObject> {
+        self.read_version(file, root)?;
         let elem = self.element(file, root)?;
         if elem.tag != "scene" {
             return Err(elem.error(format!(
@@ -825,52 +918,40 @@ impl Loader {
                 elem.desc
             )));
         }
-        elem.check_attrs(&["version"])?;
-        let version = elem
-            .get("version")
-            .ok_or_else(|| elem.error("missing attribute \"version\" in root element <scene>"))?;
-        file.upgrade = self.check_version(&elem, version)?;
+        elem.check_attrs(&["version", "type", "id", "name"])?;
+        check_scene_type(&elem)?;
+        if let Some(id) = elem.get("id").filter(|id| !id.is_empty()) {
+            self.declare_id(&elem, id, IdTarget::Root)?;
+        }
         let mut body = Body::default();
         self.parse_children(file, root, "<scene>", &mut body, 1)?;
+        if file.upgrade {
+            body.upgrade_from_v1("scene", &elem.location)?;
+        }
+        let (properties, children) = body.split();
         Ok(RawObject {
             tag: "scene".to_string(),
             plugin: String::new(),
             id: None,
-            properties: body.properties,
-            children: body.children,
+            properties,
+            children,
             location: elem.location,
             desc: "<scene>".to_string(),
         })
     }
 
-    /// Parses a scene version; returns whether the file needs the pre-2.0 upgrade.
-    fn check_version(&self, elem: &Elem, version: &str) -> Result<bool> {
-        let parsed = parse_version(version).ok_or_else(|| {
-            elem.error(format!(
-                "could not parse version number \"{}\" in {} (expected major.minor.patch)",
-                shorten(version),
-                elem.desc
-            ))
-        })?;
-        Ok(parsed < (2, 0, 0))
-    }
-
-    /// Parses the child nodes of `parent` into `body`. `depth` is the nesting depth of the
-    /// children.
+    /// Parses the child elements of `parent` into `body` (text and every other node is
+    /// ignored, as in Mitsuba). `depth` is the nesting depth of the children.
     fn parse_children(
         &mut self,
         file: &SourceFile,
-        parent: Node,
+        parent: Element,
         parent_desc: &str,
         body: &mut Body,
         depth: usize,
     ) -> Result<()> {
         for child in parent.children() {
-            match child.node_type() {
-                NodeType::Element => self.parse_child(file, child, parent_desc, body, depth)?,
-                NodeType::Text => check_text(file, child, parent_desc)?,
-                NodeType::Root | NodeType::Comment | NodeType::PI => {}
-            }
+            self.parse_child(file, child, parent_desc, body, depth)?;
         }
         Ok(())
     }
@@ -879,7 +960,7 @@ impl Loader {
     fn parse_child(
         &mut self,
         file: &SourceFile,
-        node: Node,
+        node: Element,
         parent_desc: &str,
         body: &mut Body,
         depth: usize,
@@ -892,45 +973,58 @@ impl Loader {
         }
         let elem = self.element(file, node)?;
         let tag = elem.tag.as_str();
-        if OBJECT_TAGS.contains(&tag) {
-            let child = self.parse_object(file, &elem, depth)?;
-            return body.add_child(child, &elem, parent_desc);
+        if OBJECT_TAGS.contains(&tag) || (tag == "spectrum" && elem.get("type").is_some()) {
+            // `<spectrum type="...">` is a spectrum plugin (an object), as in Mitsuba.
+            elem.check_attrs(&["type", "id", "name"])?;
+            let child = self.parse_object(file, &elem, elem.child_name(), depth)?;
+            self.add_object(body, child, &elem, parent_desc);
+            return Ok(());
         }
         match tag {
             "ref" => {
-                let child = self.parse_ref(file, &elem)?;
-                body.add_child(child, &elem, parent_desc)
+                elem.check_attrs(&["id", "name"])?;
+                let child = self.parse_ref(&elem)?;
+                ensure_leaf(file, &elem)?;
+                body.add_unique(Entry::Child(child), &elem, parent_desc)
             }
-            "alias" => self.parse_alias(file, &elem),
-            "default" => self.parse_default(file, &elem),
-            "include" => self.parse_include(file, &elem, parent_desc, body, depth),
-            "path" => self.parse_path(file, &elem, parent_desc, depth),
-            // `<spectrum type="...">` is a spectrum plugin (an object), as in Mitsuba.
-            "spectrum" if elem.get("type").is_some() => {
-                let child = self.parse_object(file, &elem, depth)?;
-                body.add_child(child, &elem, parent_desc)
+            "alias" => {
+                self.parse_alias(&elem)?;
+                ensure_leaf(file, &elem)
+            }
+            "default" => {
+                self.parse_default(&elem)?;
+                ensure_leaf(file, &elem)
+            }
+            "include" => {
+                self.parse_include(file, &elem, parent_desc, body, depth)?;
+                ensure_leaf(file, &elem)
+            }
+            "path" => {
+                self.parse_path(file, &elem, parent_desc, depth)?;
+                ensure_leaf(file, &elem)
             }
             "spectrum" => {
-                ensure_leaf(file, &elem)?;
+                elem.check_attrs(&["name", "value", "filename"])?;
                 let property = Property {
                     name: elem.property_name()?,
                     value: self.parse_spectrum(&elem)?,
                     location: elem.location.clone(),
                 };
-                body.add_property(property, &elem, parent_desc)
+                body.add_unique(Entry::Property(property), &elem, parent_desc)?;
+                ensure_leaf(file, &elem)
             }
             "integer" | "float" | "boolean" | "string" | "rgb" | "point" | "vector" => {
-                ensure_leaf(file, &elem)?;
                 let property = Property {
-                    name: elem.property_name()?,
                     value: parse_value(&elem)?,
+                    name: elem.property_name()?,
                     location: elem.location.clone(),
                 };
-                body.add_property(property, &elem, parent_desc)
+                body.add_unique(Entry::Property(property), &elem, parent_desc)?;
+                ensure_leaf(file, &elem)
             }
             "transform" => {
                 let property = self.parse_transform(file, &elem)?;
-                body.add_property(property, &elem, parent_desc)
+                body.add_unique(Entry::Property(property), &elem, parent_desc)
             }
             "scene" => Err(elem.error(format!(
                 "{} can only be the root element (found in {parent_desc})",
@@ -953,23 +1047,37 @@ impl Loader {
         }
     }
 
-    /// Parses `<shape type=".." id=".." name="..">...</shape>` and friends into the arena.
-    fn parse_object(&mut self, file: &SourceFile, elem: &Elem, depth: usize) -> Result<RawChild> {
-        elem.check_attrs(&["type", "id", "name"])?;
+    /// Adds a nested object to `body`, warning when it replaces an entry of the same name.
+    fn add_object(&mut self, body: &mut Body, child: RawChild, elem: &Elem, parent_desc: &str) {
+        let name = match &child {
+            RawChild::Object { name, .. } | RawChild::Ref { name, .. } => name.clone(),
+        };
+        if body.add_object(Entry::Child(child)) {
+            self.warnings.push(format!(
+                "{}: {} replaces the earlier entry named \"{}\" in {parent_desc} (as in Mitsuba, the last object of a name wins)",
+                elem.location,
+                elem.desc,
+                name.unwrap_or_default()
+            ));
+        }
+    }
+
+    /// Parses `<shape type=".." id=".." name="..">...</shape>` and friends into the arena
+    /// (attributes already checked). `name` is the name it gets in its parent.
+    fn parse_object(
+        &mut self,
+        file: &SourceFile,
+        elem: &Elem,
+        name: Option<String>,
+        depth: usize,
+    ) -> Result<RawChild> {
         let plugin = elem.require("type")?;
         if plugin.is_empty() {
             return Err(elem.error(format!("empty \"type\" attribute in {}", elem.desc)));
         }
-        let name = match elem.get("name") {
-            Some(name) => {
-                elem.check_name(name)?;
-                Some(name.to_string())
-            }
-            None => None,
-        };
         // The slot is reserved first, so that the id names it while the children are parsed.
         let index = self.arena.len();
-        let id = match elem.get("id") {
+        let id = match elem.get("id").filter(|id| !id.is_empty()) {
             Some(id) => {
                 self.declare_id(elem, id, IdTarget::Object(index))?;
                 Some(id.to_string())
@@ -987,25 +1095,38 @@ impl Loader {
         });
         let mut body = Body::default();
         self.parse_children(file, elem.node, &elem.desc, &mut body, depth + 1)?;
+        if file.upgrade {
+            body.upgrade_from_v1(plugin, &elem.location)?;
+        }
+        let (properties, children) = body.split();
         self.arena[index] = RawObject {
             tag: elem.tag.clone(),
             plugin: plugin.to_string(),
             id,
-            properties: body.properties,
-            children: body.children,
+            properties,
+            children,
             location: elem.location.clone(),
             desc: elem.desc.clone(),
         };
         Ok(RawChild::Object { name, index })
     }
 
+    /// Whether `id` is taken: declared anywhere, or the root id of a file being parsed.
+    fn id_taken(&self, id: &str) -> Option<Location> {
+        if let Some(decl) = self.ids.get(id) {
+            return Some(decl.location.clone());
+        }
+        self.scopes
+            .iter()
+            .find_map(|scope| scope.root_ids.get(id).cloned())
+    }
+
     /// Declares a new id at `elem`.
     fn declare_id(&mut self, elem: &Elem, id: &str, target: IdTarget) -> Result<()> {
-        elem.check_id(id)?;
-        if let Some(previous) = self.ids.get(id) {
+        if let Some(previous) = self.id_taken(id) {
             return Err(elem.error(format!(
-                "{} has duplicate id \"{id}\" (first declared at {})",
-                elem.desc, previous.location
+                "{} has duplicate id \"{id}\" (first declared at {previous})",
+                elem.desc
             )));
         }
         self.ids.insert(
@@ -1013,59 +1134,37 @@ impl Loader {
             IdDecl {
                 target,
                 location: elem.location.clone(),
+                order: self.id_count,
             },
         );
+        self.id_count += 1;
         Ok(())
     }
 
-    /// The arena index of the object named `id` (following aliases), for a reference
-    /// described by `desc` at `location`.
+    /// The arena index of the object named `id`, for a reference described by `desc` at
+    /// `location`.
     fn lookup(&self, id: &str, location: &Location, desc: &str) -> Result<usize> {
-        let mut id = id;
-        let mut desc = desc;
-        let mut location = location;
-        // Each alias hop names a different id, so a chain longer than the id count cycles.
-        for _ in 0..=self.ids.len() {
-            match self.ids.get(id) {
-                Some(IdDecl {
-                    target: IdTarget::Object(index),
-                    ..
-                }) => return Ok(*index),
-                Some(IdDecl {
-                    target: IdTarget::Alias { of, desc: d },
-                    location: l,
-                }) => {
-                    id = of;
-                    desc = d;
-                    location = l;
-                }
-                None => {
-                    return Err(Error::scene(
-                        location,
-                        format!("{desc} refers to unknown id \"{id}\""),
-                    ))
-                }
-            }
+        match self.ids.get(id) {
+            Some(IdDecl {
+                target: IdTarget::Object(index),
+                ..
+            }) => Ok(*index),
+            Some(IdDecl {
+                target: IdTarget::Root,
+                ..
+            }) => Err(Error::scene(
+                location,
+                format!("{desc} refers to the scene root, which contains it: cyclic reference"),
+            )),
+            None => Err(Error::scene(
+                location,
+                format!("{desc} refers to unknown id \"{id}\""),
+            )),
         }
-        Err(Error::scene(
-            location,
-            format!("{desc} is part of a cycle of aliases"),
-        ))
     }
 
     /// Resolves every reference below the scene root, once the whole scene is parsed.
     fn resolve_root(&self, raw: RawObject) -> Result<Object> {
-        // Every alias must name an object, referenced or not (checked in document order).
-        let mut aliases: Vec<(&Location, &String)> = self
-            .ids
-            .iter()
-            .filter(|(_, d)| matches!(d.target, IdTarget::Alias { .. }))
-            .map(|(id, d)| (&d.location, id))
-            .collect();
-        aliases.sort_by(|a, b| (&a.0.file, a.0.line, a.0.col).cmp(&(&b.0.file, b.0.line, b.0.col)));
-        for (location, id) in aliases {
-            self.lookup(id, location, "<alias>")?;
-        }
         let mut done: Vec<Option<Arc<Object>>> = vec![None; self.arena.len()];
         let mut state = vec![ResolveState::Todo; self.arena.len()];
         let children = raw
@@ -1156,45 +1255,57 @@ impl Loader {
         Ok(object)
     }
 
-    /// Parses `<ref id=".." name=".."/>` (resolved after parsing).
-    fn parse_ref(&mut self, file: &SourceFile, elem: &Elem) -> Result<RawChild> {
-        ensure_leaf(file, elem)?;
-        elem.check_attrs(&["id", "name"])?;
+    /// Parses `<ref id=".." name=".."/>` (resolved after parsing; attributes checked).
+    fn parse_ref(&mut self, elem: &Elem) -> Result<RawChild> {
         let id = elem.require("id")?;
-        let name = match elem.get("name") {
-            Some(name) => {
-                elem.check_name(name)?;
-                Some(name.to_string())
-            }
-            None => None,
-        };
         Ok(RawChild::Ref {
-            name,
+            name: elem.child_name(),
             id: id.to_string(),
             location: elem.location.clone(),
             desc: elem.desc.clone(),
         })
     }
 
-    /// Parses `<alias id="existing" as="new"/>`: `new` becomes another id of the same object
-    /// (checked after parsing, so `existing` may be declared later).
-    fn parse_alias(&mut self, file: &SourceFile, elem: &Elem) -> Result<()> {
-        ensure_leaf(file, elem)?;
+    /// Parses `<alias id="existing" as="new"/>`: `new` becomes another id of the object
+    /// `existing` names, which must be declared already, in this file or in a file it
+    /// included (Mitsuba parses each included file on its own); `new` must be free.
+    fn parse_alias(&mut self, elem: &Elem) -> Result<()> {
         elem.check_attrs(&["id", "as"])?;
-        let of = elem.require("id")?.to_string();
+        let source = elem.require("id")?;
         let new_id = elem.require("as")?;
-        let target = IdTarget::Alias {
-            of,
-            desc: elem.desc.clone(),
+        if let Some(previous) = self.id_taken(new_id) {
+            return Err(elem.error(format!(
+                "{}: alias destination id \"{new_id}\" already exists (declared at {previous})",
+                elem.desc
+            )));
+        }
+        let Some(scope) = self.scopes.last_mut() else {
+            return Ok(());
         };
-        self.declare_id(elem, new_id, target)
+        if scope.root_ids.contains_key(source) {
+            // An alias of an included <scene> root is dropped with it.
+            scope
+                .root_ids
+                .insert(new_id.to_string(), elem.location.clone());
+            return Ok(());
+        }
+        let first_id = scope.first_id;
+        match self.ids.get(source) {
+            Some(decl) if decl.order >= first_id => {
+                let target = decl.target;
+                self.declare_id(elem, new_id, target)
+            }
+            _ => Err(elem.error(format!(
+                "{}: alias source id \"{source}\" not found (an alias can only name an id declared before it, in the same file or a file it included)",
+                elem.desc
+            ))),
+        }
     }
 
     /// Parses `<spectrum name=".." value=".."/>` or `filename=".."` (exactly one of the two;
     /// the file is looked up with the resolver as it stands, as in Mitsuba).
     fn parse_spectrum(&self, elem: &Elem) -> Result<Value> {
         use crate::spectrum::SpectrumValue;
-        elem.check_attrs(&["name", "value", "filename"])?;
         let value = elem.get("value").filter(|v| !v.is_empty());
         let filename = elem.get("filename").filter(|v| !v.is_empty());
         let spectrum = match (value, filename) {
@@ -1222,9 +1333,10 @@ impl Loader {
             .map_err(|m| elem.error(format!("{m} in {}", elem.desc)))
     }
 
-    /// Parses `<path value=".."/>`, allowed only directly in a file's `<scene>`: the folder
-    /// (relative to this file's directory, else looked up with the resolver) is searched first
-    /// from now on. Inside an included file it lasts until the end of that file, as in Mitsuba.
+    /// Parses `<path value=".."/>`, allowed only directly inside a file's root element: the
+    /// folder (relative to this file's directory, else looked up with the resolver) is
+    /// searched first from now on. Inside an included file it lasts until the end of that
+    /// file, as in Mitsuba.
     fn parse_path(
         &mut self,
         file: &SourceFile,
@@ -1232,15 +1344,14 @@ impl Loader {
         parent_desc: &str,
         depth: usize,
     ) -> Result<()> {
-        ensure_leaf(file, elem)?;
         elem.check_attrs(&["value"])?;
+        let value = Path::new(elem.require("value")?);
         if depth != self.file_root_depth {
             return Err(elem.error(format!(
-                "{} can only appear directly inside <scene> (found in {parent_desc})",
+                "{} can only appear directly inside the root element (found in {parent_desc})",
                 elem.desc
             )));
         }
-        let value = Path::new(elem.require("value")?);
         let mut dir = if value.is_absolute() {
             value.to_path_buf()
         } else {
@@ -1252,7 +1363,7 @@ impl Loader {
                 dir = found;
             }
         }
-        if !dir.is_dir() {
+        if !dir.exists() {
             return Err(elem.error(format!(
                 "{}: folder \"{}\" not found",
                 elem.desc,
@@ -1263,29 +1374,40 @@ impl Loader {
         Ok(())
     }
 
-    /// Parses `<default name=".." value=".."/>`; the first definition of a name wins, and
-    /// overrides always win.
-    fn parse_default(&mut self, file: &SourceFile, elem: &Elem) -> Result<()> {
-        ensure_leaf(file, elem)?;
+    /// Parses `<default name=".." value=".."/>`: a new `$name` (any non-empty name), unless
+    /// an override or an earlier default has that name.
+    fn parse_default(&mut self, elem: &Elem) -> Result<()> {
         elem.check_attrs(&["name", "value"])?;
         let name = elem.require("name")?;
         let value = elem.require("value")?;
-        if name.is_empty() || !name.bytes().all(|b| b.is_ascii_alphanumeric() || b == b'_') {
-            return Err(elem.error(format!(
-                "invalid parameter name \"{}\" in {}: use letters, digits and '_'",
-                shorten(name),
-                elem.desc
-            )));
+        if name.is_empty() {
+            return Err(elem.error(format!("{}: the name must be non-empty", elem.desc)));
         }
-        self.params
-            .entry(name.to_string())
-            .or_insert_with(|| value.to_string());
+        if self.params.iter().any(|p| p.name == name) {
+            return Ok(());
+        }
+        // After the names at least as long, as Mitsuba inserts it.
+        let at = self
+            .params
+            .iter()
+            .position(|p| p.name.len() < name.len())
+            .unwrap_or(self.params.len());
+        self.params.insert(
+            at,
+            Parameter {
+                name: name.to_string(),
+                value: value.to_string(),
+                used: false,
+                is_override: false,
+            },
+        );
         Ok(())
     }
 
-    /// Parses `<include filename=".."/>`: the file's `<scene>` children are spliced into
-    /// `body` (a file whose root is not `<scene>` contributes that one element, as in
-    /// Mitsuba).
+    /// Parses `<include filename=".." name=".."/>`: a file whose root is `<scene>` (or an
+    /// object without a `type`, which Mitsuba takes for a scene) contributes its nested
+    /// objects to `body`; a file whose root is another object contributes that object, named
+    /// `name`.
     fn parse_include(
         &mut self,
         file: &SourceFile,
@@ -1294,16 +1416,14 @@ impl Loader {
         body: &mut Body,
         depth: usize,
     ) -> Result<()> {
-        ensure_leaf(file, elem)?;
-        elem.check_attrs(&["filename"])?;
+        elem.check_attrs(&["filename", "name"])?;
         let filename = elem.require("filename")?;
-        if filename.is_empty() {
-            return Err(elem.error(format!("empty \"filename\" in {}", elem.desc)));
-        }
         // Mitsuba looks the file up with the resolver, this file's directory first; whatever
         // the included file adds to the resolver is dropped after it.
         let saved_resolver = self.resolver.clone();
-        self.resolver.prepend(file.dir.clone());
+        if !file.dir.as_os_str().is_empty() {
+            self.resolver.prepend(file.dir.clone());
+        }
         let path = self.resolver.resolve(Path::new(filename));
         let result = self.include_file(elem, parent_desc, body, depth, path);
         self.resolver = saved_resolver;
@@ -1319,9 +1439,16 @@ impl Loader {
         depth: usize,
         path: PathBuf,
     ) -> Result<()> {
-        if self.include_stack.len() > MAX_INCLUDE_DEPTH {
+        if filename_is_missing(&path) {
             return Err(elem.error(format!(
-                "{} exceeds the include depth limit of {MAX_INCLUDE_DEPTH}",
+                "{}: included file \"{}\" not found",
+                elem.desc,
+                path.display()
+            )));
+        }
+        if self.include_stack.len() >= MAX_INCLUDE_DEPTH {
+            return Err(elem.error(format!(
+                "{} exceeds the include depth limit of {MAX_INCLUDE_DEPTH} files (Mitsuba's)",
                 elem.desc
             )));
         }
@@ -1342,72 +1469,135 @@ impl Loader {
                     path.display()
                 ))
             })?;
-        let text = decode_utf8(&path, bytes)?;
+        let text = markup::to_utf8(&bytes);
         let mut included = SourceFile::new(&path, &text);
         let doc = parse_document(&included)?;
-        let root = doc.root_element();
         self.include_stack.push(IncludeFrame { key, shown: path });
-        let result = self.parse_included(&mut included, root, parent_desc, body, depth + 1);
+        self.scopes.push(FileScope {
+            first_id: self.id_count,
+            root_ids: HashMap::new(),
+        });
+        let result = self.parse_included(&mut included, doc.root(), elem, parent_desc, body, depth);
+        self.scopes.pop();
         self.include_stack.pop();
         result
     }
 
-    /// Splices the root of an included file into `body`.
+    /// Adds the root of an included file to `body` (see [`Loader::parse_include`]).
     fn parse_included(
         &mut self,
         included: &mut SourceFile,
-        root: Node,
+        root: Element,
+        include: &Elem,
         parent_desc: &str,
         body: &mut Body,
         depth: usize,
     ) -> Result<()> {
-        if root.tag_name().name() != "scene" || root.tag_name().namespace().is_some() {
+        self.read_version(included, root)?;
+        let root_elem = self.element(included, root)?;
+        let tag = root_elem.tag.as_str();
+        let is_object = OBJECT_TAGS.contains(&tag)
+            || tag == "scene"
+            || (tag == "spectrum" && root_elem.get("type").is_some());
+        if !is_object {
+            // Mitsuba reads such a root as usual: its `version` is an unexpected attribute.
             return self.parse_child(included, root, parent_desc, body, depth);
         }
-        let root_elem = self.element(included, root)?;
-        root_elem.check_attrs(&["version"])?;
-        if let Some(version) = root_elem.get("version") {
-            included.upgrade = self.check_version(&root_elem, version)?;
+        root_elem.check_attrs(&["version", "type", "id", "name"])?;
+        if tag == "scene" {
+            check_scene_type(&root_elem)?;
         }
-        let saved_root_depth = std::mem::replace(&mut self.file_root_depth, depth);
-        let result = self.parse_children(included, root, parent_desc, body, depth);
+        let saved_root_depth = self.file_root_depth;
+        let result = if root_elem.get("type").is_none() {
+            // A scene: its nested objects join `body`; its id lives while it is parsed.
+            if let Some(id) = root_elem.get("id").filter(|id| !id.is_empty()) {
+                if let Some(scope) = self.scopes.last_mut() {
+                    scope
+                        .root_ids
+                        .insert(id.to_string(), root_elem.location.clone());
+                }
+            }
+            self.file_root_depth = depth;
+            self.splice_scene(included, &root_elem, body, depth)
+        } else {
+            self.file_root_depth = depth + 1;
+            self.parse_object(included, &root_elem, include.child_name(), depth)
+                .map(|child| self.add_object(body, child, include, parent_desc))
+        };
         self.file_root_depth = saved_root_depth;
         result
     }
 
-    /// Parses `<transform name="..">` and its operations into a property.
+    /// Parses the children of an included `<scene>` root and adds its nested objects to
+    /// `body`. Its properties and references are parsed (so their errors are reported) but
+    /// dropped: Mitsuba 3.9.1 merges only the objects of an included scene into the
+    /// including element.
+    fn splice_scene(
+        &mut self,
+        included: &SourceFile,
+        root: &Elem,
+        body: &mut Body,
+        depth: usize,
+    ) -> Result<()> {
+        let mut own = Body::default();
+        self.parse_children(included, root.node, &root.desc, &mut own, depth)?;
+        for entry in own.entries {
+            match entry {
+                Entry::Child(child @ RawChild::Object { .. }) => {
+                    let name = match &child {
+                        RawChild::Object { name, .. } | RawChild::Ref { name, .. } => name.clone(),
+                    };
+                    if body.add_object(Entry::Child(child)) {
+                        self.warnings.push(format!(
+                            "{}: an object of the included file replaces the earlier entry named \"{}\" (as in Mitsuba, the last object of a name wins)",
+                            root.location,
+                            name.unwrap_or_default()
+                        ));
+                    }
+                }
+                Entry::Child(RawChild::Ref { location, desc, .. }) => {
+                    self.warnings.push(format!(
+                        "{location}: {desc} directly inside an included <scene> is ignored, as Mitsuba ignores it"
+                    ));
+                }
+                Entry::Property(p) => {
+                    self.warnings.push(format!(
+                        "{}: property \"{}\" directly inside an included <scene> is ignored, as Mitsuba ignores it",
+                        p.location, p.name
+                    ));
+                }
+            }
+        }
+        Ok(())
+    }
+
+    /// Parses `<transform name="..">` and its operations into a property. Other nodes inside
+    /// it, and whatever is inside an operation, are ignored, as in Mitsuba.
     fn parse_transform(&mut self, file: &SourceFile, elem: &Elem) -> Result<Property> {
         elem.check_attrs(&["name"])?;
         let name = elem.property_name()?;
         let mut matrix = DMat4::IDENTITY;
         for child in elem.node.children() {
-            match child.node_type() {
-                NodeType::Element => {
-                    let op = self.element(file, child)?;
-                    ensure_leaf(file, &op)?;
-                    let m = transform_op(&op, &elem.desc)?;
-                    if op.tag == "rotate" {
-                        let axis = op.xyz(0.0)?;
-                        if (axis.length_squared() - 1.0).abs() > 1e-6 {
-                            self.warnings.push(format!(
-                                "{}: {} has an axis of length {:.6}: Mitsuba does not normalise rotation axes, so this also scales and shears (penumbra does as Mitsuba)",
-                                op.location,
-                                op.desc,
-                                axis.length()
-                            ));
-                        }
-                    }
-                    // Each operation applies after the previous ones, as in Mitsuba.
-                    matrix = m * matrix;
-                    if !matrix.is_finite() {
-                        return Err(op.error(format!(
-                            "{} makes the transform {} non-finite",
-                            op.desc, elem.desc
-                        )));
-                    }
+            let op = self.element(file, child)?;
+            let m = transform_op(&op)?;
+            if op.tag == "rotate" {
+                let axis = op.xyz(&op.xyz_attrs()?, 0.0)?;
+                if (axis.length_squared() - 1.0).abs() > 1e-6 {
+                    self.warnings.push(format!(
+                        "{}: {} has an axis of length {:.6}: Mitsuba does not normalise rotation axes, so this also scales and shears (penumbra does as Mitsuba)",
+                        op.location,
+                        op.desc,
+                        axis.length()
+                    ));
                 }
-                NodeType::Text => check_text(file, child, &elem.desc)?,
-                NodeType::Root | NodeType::Comment | NodeType::PI => {}
+            }
+            // Each operation applies after the previous ones, as in Mitsuba.
+            matrix = m * matrix;
+            if !matrix.is_finite() {
+                return Err(op.error(format!(
+                    "{} makes the transform {} non-finite",
+                    op.desc, elem.desc
+                )));
             }
         }
         Ok(Property {
@@ -1418,73 +1608,57 @@ impl Loader {
     }
 }
 
-/// Mitsuba's in-memory upgrade of one attribute of a pre-2.0 file.
-fn upgrade_attribute<'v>(node: Node, tag: &str, name: &str, value: &'v str) -> Cow<'v, str> {
-    match name {
-        "name" if tag != "default" => {
-            let upgraded = camel_to_snake(value);
-            let parent_is_diffuse = node.parent_element().is_some_and(|p| {
-                p.tag_name().name() == "bsdf" && p.attribute("type") == Some("diffuse")
-            });
-            if parent_is_diffuse && upgraded == "diffuse_reflectance" {
-                Cow::Borrowed("reflectance")
-            } else if upgraded == value {
-                Cow::Borrowed(value)
-            } else {
-                Cow::Owned(upgraded)
-            }
-        }
-        "id" if value.starts_with('_') => Cow::Owned(format!("ID{value}__UPGR")),
-        _ => Cow::Borrowed(value),
+/// Whether an included file does not exist (Mitsuba checks before reading it).
+fn filename_is_missing(path: &Path) -> bool {
+    !path.exists()
+}
+
+/// A `<scene>`'s `type` may only be `scene` (Mitsuba takes any other as the plugin that
+/// makes the scene, and has none).
+fn check_scene_type(elem: &Elem) -> Result<()> {
+    match elem.get("type") {
+        None | Some("scene") => Ok(()),
+        Some(other) => Err(elem.error(format!(
+            "{}: unknown scene plugin \"{}\" (only \"scene\" is known)",
+            elem.desc,
+            shorten(other)
+        ))),
     }
 }
 
-/// Rejects child elements and text inside an element that takes none.
+/// Rejects child elements inside an element that takes none (other nodes are ignored).
 fn ensure_leaf(file: &SourceFile, elem: &Elem) -> Result<()> {
-    for child in elem.node.children() {
-        match child.node_type() {
-            NodeType::Element => {
-                let tag = child.tag_name().name();
-                let desc = describe(tag, child.attributes().map(|a| (a.name(), a.value())));
-                return Err(Error::scene(
-                    &file.node_location(child),
-                    format!("{desc} cannot appear inside {}", elem.desc),
-                ));
-            }
-            NodeType::Text => check_text(file, child, &elem.desc)?,
-            NodeType::Root | NodeType::Comment | NodeType::PI => {}
+    match elem.node.children().next() {
+        Some(child) => {
+            let desc = describe_node(child);
+            Err(Error::scene(
+                &file.node_location(child),
+                format!("{desc} cannot appear inside {}", elem.desc),
+            ))
         }
+        None => Ok(()),
     }
-    Ok(())
 }
 
-/// Rejects a text node that is not whitespace only.
-fn check_text(file: &SourceFile, node: Node, parent_desc: &str) -> Result<()> {
-    let text = node.text().unwrap_or_default();
-    let trimmed = text.trim();
-    if trimmed.is_empty() {
-        return Ok(());
-    }
-    // Point at the first non-blank character of the source text, when it can be found.
-    let range = node.range();
-    let start = file
-        .text
-        .get(range.clone())
-        .and_then(|source| source.find(|c: char| !c.is_whitespace()))
-        .map_or(range.start, |offset| range.start + offset);
-    Err(Error::scene(
-        &file.location(start),
-        format!("unexpected text \"{}\" in {parent_desc}", shorten(trimmed)),
-    ))
-}
-
-/// Parses the value of a simple property element (everything but `<transform>`).
+/// Parses the value of a simple property element (everything but `<transform>` and
+/// `<spectrum>`).
 fn parse_value(elem: &Elem) -> Result<Value> {
-    let located = |m: String| elem.error(format!("{m} in {}", elem.desc));
     match elem.tag.as_str() {
         "point" | "vector" => {
-            elem.check_attrs(&["name", "value", "x", "y", "z"])?;
-            let v = elem.xyz(0.0)?;
+            let parts = elem.xyz_attrs()?;
+            let mut allowed = vec!["name", "x", "y", "z"];
+            if elem.get("value").is_some() {
+                allowed.push("value");
+            }
+            elem.check_attrs(&allowed)?;
+            elem.require("name")?;
+            // After `value` is expanded, Mitsuba requires all three components.
+            for (part, key) in parts.iter().zip(["x", "y", "z"]) {
+                if part.is_none() {
+                    return Err(elem.error(format!("missing attribute \"{key}\" in {}", elem.desc)));
+                }
+            }
+            let v = elem.xyz(&parts, 0.0)?;
             Ok(if elem.tag == "point" {
                 Value::Point(v)
             } else {
@@ -1493,19 +1667,30 @@ fn parse_value(elem: &Elem) -> Result<Value> {
         }
         tag => {
             elem.check_attrs(&["name", "value"])?;
+            elem.require("name")?;
             let text = elem.require("value")?;
             match tag {
-                "integer" => Ok(Value::Integer(parse_i64(text).map_err(located)?)),
-                "float" => Ok(Value::Float(parse_f64(text).map_err(located)?)),
-                "boolean" => match text.to_ascii_lowercase().as_str() {
-                    "true" => Ok(Value::Boolean(true)),
-                    "false" => Ok(Value::Boolean(false)),
-                    _ => Err(elem.error(format!(
-                        "could not parse boolean value \"{}\" in {}: must be \"true\" or \"false\"",
+                "integer" => parse_integer(text).map(Value::Integer).ok_or_else(|| {
+                    elem.error(format!(
+                        "could not parse integer value \"{}\" in {}",
                         shorten(text),
                         elem.desc
-                    ))),
-                },
+                    ))
+                }),
+                "float" => Ok(Value::Float(elem.float(text)?)),
+                "boolean" => {
+                    if text.eq_ignore_ascii_case("true") {
+                        Ok(Value::Boolean(true))
+                    } else if text.eq_ignore_ascii_case("false") {
+                        Ok(Value::Boolean(false))
+                    } else {
+                        Err(elem.error(format!(
+                            "could not parse boolean value \"{}\" in {}: must be \"true\" or \"false\"",
+                            shorten(text),
+                            elem.desc
+                        )))
+                    }
+                }
                 "rgb" => {
                     let numbers = elem.numbers(text)?;
                     match numbers.as_slice() {
@@ -1525,23 +1710,35 @@ fn parse_value(elem: &Elem) -> Result<Value> {
 }
 
 /// The matrix of one operation inside a `<transform>`.
-fn transform_op(op: &Elem, transform_desc: &str) -> Result<DMat4> {
+fn transform_op(op: &Elem) -> Result<DMat4> {
+    let xyz_allowed = |extra: &[&'static str]| -> Vec<&'static str> {
+        let mut allowed = vec!["x", "y", "z"];
+        if op.get("value").is_some() {
+            allowed.push("value");
+        }
+        allowed.extend_from_slice(extra);
+        allowed
+    };
     match op.tag.as_str() {
         "translate" => {
-            op.check_attrs(&["x", "y", "z", "value"])?;
-            Ok(DMat4::from_translation(op.xyz(0.0)?))
+            let parts = op.xyz_attrs()?;
+            op.check_attrs(&xyz_allowed(&[]))?;
+            Ok(DMat4::from_translation(op.xyz(&parts, 0.0)?))
         }
         "scale" => {
-            op.check_attrs(&["x", "y", "z", "value"])?;
-            Ok(DMat4::from_scale(op.xyz(1.0)?))
+            let parts = op.xyz_attrs()?;
+            op.check_attrs(&xyz_allowed(&[]))?;
+            Ok(DMat4::from_scale(op.xyz(&parts, 1.0)?))
         }
         "rotate" => {
-            op.check_attrs(&["x", "y", "z", "value", "angle"])?;
-            let axis = op.xyz(0.0)?;
-            let angle = op.float_attr("angle")?;
+            let parts = op.xyz_attrs()?;
+            op.check_attrs(&xyz_allowed(&["angle"]))?;
+            op.require("angle")?;
+            let axis = op.xyz(&parts, 0.0)?;
             if axis == DVec3::ZERO {
                 return Err(op.error(format!("{} has a zero rotation axis", op.desc)));
             }
+            let angle = op.float_attr("angle")?;
             Ok(mitsuba_rotate(axis, angle))
         }
         "matrix" => {
@@ -1561,16 +1758,17 @@ fn transform_op(op: &Elem, transform_desc: &str) -> Result<DMat4> {
         }
         "lookat" => {
             op.check_attrs(&["origin", "target", "up"])?;
-            let origin = op.vec3_attr("origin")?;
-            let target = op.vec3_attr("target")?;
-            let up = match op.get("up") {
-                Some(_) => op.vec3_attr("up")?,
+            let origin = op.vec3("origin", op.require("origin")?)?;
+            let target = op.vec3("target", op.require("target")?)?;
+            // An absent or empty `up` is zero: Mitsuba then picks one.
+            let up = match op.get("up").filter(|up| !up.is_empty()) {
+                Some(up) => op.vec3("up", up)?,
                 None => DVec3::ZERO,
             };
             look_at(origin, target, up).map_err(|m| op.error(format!("{m} in {}", op.desc)))
         }
         _ => Err(op.error(format!(
-            "unexpected {} inside {transform_desc}: only translate, rotate, scale, matrix and lookat are allowed",
+            "unexpected {} inside <transform>: only translate, rotate, scale, matrix and lookat are allowed",
             op.desc
         ))),
     }
@@ -1592,21 +1790,30 @@ fn mitsuba_rotate(a: DVec3, angle: f64) -> DMat4 {
     DMat4::from_mat3(DMat3::IDENTITY * c + outer * (1.0 - c) + cross * s)
 }
 
-/// Mitsuba's `look_at`: columns (left, new_up, dir, origin). A zero `up` picks one, as
-/// Mitsuba does.
+/// Mitsuba's `dr::normalize`: `v · (1 / |v|)`, NaN for a zero vector (or one whose squared
+/// length underflows).
+fn mitsuba_normalize(v: DVec3) -> DVec3 {
+    v * (1.0 / v.dot(v).sqrt())
+}
+
+/// Mitsuba's `look_at`: columns (left, new_up, dir, origin), with dir = normalize(target −
+/// origin) and left = normalize(up × dir), computed as Mitsuba computes them; refused where
+/// Mitsuba's result is NaN (target at origin, `up` parallel to the direction). An `up` of
+/// exactly zero is replaced by Mitsuba's choice (`coordinate_system(dir)`).
 fn look_at(origin: DVec3, target: DVec3, up: DVec3) -> std::result::Result<DMat4, String> {
-    let dir = safe_normalize(target - origin)
-        .ok_or_else(|| "target coincides with origin".to_string())?;
-    let up = match safe_normalize(up) {
-        Some(up) => up,
-        None => crate::geometry::coordinate_system(dir).0,
+    let dir = mitsuba_normalize(target - origin);
+    if dir.is_nan() {
+        return Err("target coincides with origin".to_string());
+    }
+    let up = if up == DVec3::ZERO {
+        crate::geometry::coordinate_system(dir).0
+    } else {
+        up
     };
-    let left = up.cross(dir);
-    // A relative test: a unit `up` (nearly) parallel to the unit `dir` leaves no frame.
-    if !left.is_finite() || left.length() <= 1e-10 {
+    let left = mitsuba_normalize(up.cross(dir));
+    if left.is_nan() {
         return Err("up vector is parallel to the viewing direction".to_string());
     }
-    let left = left.normalize();
     let new_up = dir.cross(left);
     let m = DMat4::from_cols(
         left.extend(0.0),
@@ -1619,16 +1826,6 @@ fn look_at(origin: DVec3, target: DVec3, up: DVec3) -> std::result::Result<DMat4
     } else {
         Err("non-finite look-at transform".to_string())
     }
-}
-
-/// `v / |v|`, or `None` if `v` is zero or not finite.
-fn safe_normalize(v: DVec3) -> Option<DVec3> {
-    let largest = v.abs().max_element();
-    if !largest.is_finite() || largest <= 0.0 {
-        return None;
-    }
-    let v = (v / largest).normalize();
-    v.is_finite().then_some(v)
 }
 
 #[cfg(test)]
