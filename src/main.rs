@@ -288,6 +288,17 @@ fn run_render(args: RenderArgs) -> Result<()> {
         desc.select_sensor(n)?;
     }
     let scene_hash = progressive::scene_hash(&desc);
+    // Mitsuba's integrator `timeout` is the render's time limit unless --time-limit is given
+    // (a part's samples are fixed by its plan: it has none).
+    let time_limit = match (args.time_limit, desc.timeout) {
+        (Some(t), _) => Some(t),
+        (None, Some(t)) if args.part.is_none() => Some(Duration::from_secs_f64(t)),
+        (None, Some(_)) => {
+            eprintln!("warning: the integrator's timeout is ignored by --part (a part renders its planned samples)");
+            None
+        }
+        (None, None) => None,
+    };
     let mut scene = penumbra::scene::build::build(&desc)?;
     if let Some(kind) = &args.integrator {
         scene.use_integrator(kind)?;
@@ -342,7 +353,7 @@ fn run_render(args: RenderArgs) -> Result<()> {
         spp,
         seed,
         threads: args.threads,
-        time_limit: args.time_limit,
+        time_limit,
         target_rel_error: args.target_rel_error.map(|t| {
             let kind = if args.target_per_pixel {
                 progressive::ErrorTarget::PerPixel

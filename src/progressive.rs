@@ -222,8 +222,9 @@ pub fn render_progressive(
         {
             break StopReason::Interrupted;
         }
+        // (A time limit still lets the first pass render: an image of 0 samples is no image.)
         if let Some(limit) = settings.time_limit {
-            if start.elapsed() >= limit {
+            if progress.samples > 0 && start.elapsed() >= limit {
                 break StopReason::TimeLimit;
             }
         }

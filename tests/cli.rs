@@ -784,3 +784,27 @@ fn unwritable_output() {
         &[&format!("{}: cannot write image", exr_path.display())],
     );
 }
+
+/// Mitsuba's integrator `timeout` (seconds) is the render's time limit when the command line
+/// gives none: a render of a million samples per pixel with a timeout of 0 stops after its
+/// first pass.
+#[test]
+fn the_integrators_timeout_is_the_time_limit() {
+    let dir = TempDir::new("timeout");
+    let body = r#"<integrator type="path"><float name="timeout" value="0"/></integrator>
+<shape type="sphere"><emitter type="area"><rgb name="radiance" value="1"/></emitter></shape>"#;
+    let scene = dir.write("timeout.xml", &scene(body));
+    let exr_path = dir.path("out.exr");
+    let out = penumbra([
+        "render".as_ref(),
+        scene.as_os_str(),
+        "-o".as_ref(),
+        exr_path.as_os_str(),
+        "--spp".as_ref(),
+        "1000000".as_ref(),
+    ]);
+    assert_success(&out);
+    let err = stderr(&out);
+    assert!(err.contains("stopped: time limit"), "{err}");
+    assert!(err.contains("16x16, 256 spp"), "{err}");
+}

@@ -8,7 +8,7 @@ use penumbra::sampler::SamplerKind;
 use penumbra::scene::build::build;
 use penumbra::scene::description::{
     from_xml, BsdfDesc, EmitterDesc, FilterDesc, IntegratorDesc, SamplerDesc, SceneDescription,
-    ShapeDesc, ShapeKind, TextureDesc, MAX_RESOLUTION,
+    ShapeDesc, ShapeKind, TextureDesc, VolumeDesc, MAX_RESOLUTION,
 };
 use penumbra::scene::xml::load_str;
 use penumbra::shape::ShapeGeometry;
@@ -235,15 +235,26 @@ fn integrator_parameter_errors() {
         "<float name=\"max_depth\"",
         &["parameter 'max_depth' of <integrator type=\"path\"> must be an integer, not float"],
     );
+    // (Mitsuba's path reads samples_per_pass, deprecated; max_bounces is nobody's.)
     let xml = with_sensor(
         r#"<integrator type="path">
-    <integer name="samples_per_pass" value="3"/>
+    <integer name="max_bounces" value="3"/>
 </integrator>"#,
     );
     assert_error(
         &xml,
-        "samples_per_pass",
-        &["unknown parameter 'samples_per_pass' (integer) of <integrator type=\"path\">"],
+        "max_bounces",
+        &["unknown parameter 'max_bounces' (integer) of <integrator type=\"path\">"],
+    );
+    let xml = with_sensor(
+        r#"<integrator type="path">
+    <float name="timeout" value="-2"/>
+</integrator>"#,
+    );
+    assert_error(
+        &xml,
+        "<integrator",
+        &["timeout of <integrator type=\"path\"> must be >= 0 seconds or -1"],
     );
     let xml = with_sensor(
         r#"<integrator type="path">
@@ -2278,4 +2289,47 @@ fn phong_reads_its_parameters_and_refuses_energy_gain() {
         r#"<shape type="sphere"><bsdf type="phong"><float name="exponent" value="-1"/></bsdf></shape>"#,
     );
     assert!(e.contains("exponent"), "{e}");
+}
+
+/// Parameters of Mitsuba's that only some values make meaningful: roughplastic's
+/// `alpha_u`/`alpha_v` when equal (its isotropic alpha), srgb's `unbounded` (an <rgb> above
+/// 1 accepted), gridvolume's `max_value` (kept for the majorant).
+#[test]
+fn equal_alphas_unbounded_srgb_and_max_value() {
+    let shape = |bsdf: &str| {
+        parse(&with_sensor(&format!(
+            r#"<shape type="sphere"><bsdf type="roughplastic">{bsdf}</bsdf></shape>"#
+        )))
+    };
+    let d =
+        shape(r#"<float name="alpha_u" value="0.3"/><float name="alpha_v" value="0.3"/>"#).unwrap();
+    let BsdfDesc::RoughPlastic { distribution, .. } = &d.shapes[0].bsdf else {
+        panic!("{:?}", d.shapes[0].bsdf)
+    };
+    assert_eq!(distribution.alpha_u, TextureDesc::value(0.3));
+    assert_eq!(distribution.alpha_v, TextureDesc::value(0.3));
+    let e = shape(r#"<float name="alpha_u" value="0.3"/><float name="alpha_v" value="0.2"/>"#)
+        .unwrap_err()
+        .to_string();
+    assert!(e.contains("does not support anisotropic roughness"), "{e}");
+    let srgb = |extra: &str| {
+        parse(&with_sensor(&format!(
+            r#"<shape type="sphere"><bsdf type="diffuse"><texture type="srgb" name="reflectance"><rgb name="color" value="1.5, 0.5, 0.2"/>{extra}</texture></bsdf></shape>"#
+        )))
+    };
+    let e = srgb("").unwrap_err().to_string();
+    assert!(e.contains("invalid RGB reflectance value"), "{e}");
+    let d = srgb(r#"<boolean name="unbounded" value="true"/>"#).unwrap();
+    let BsdfDesc::Diffuse { reflectance } = &d.shapes[0].bsdf else {
+        panic!()
+    };
+    assert_eq!(reflectance.constant_rgb(), Some(DVec3::new(1.5, 0.5, 0.2)));
+    let d = desc(&with_sensor(
+        r#"<medium type="heterogeneous" id="m"><volume type="gridvolume" name="sigma_t"><string name="filename" value="g.vol"/><float name="max_value" value="7"/></volume></medium>
+<shape type="sphere"><ref name="interior" id="m"/></shape>"#,
+    ));
+    let VolumeDesc::Grid { max_value, .. } = &d.media[0].sigma_t else {
+        panic!("{:?}", d.media[0].sigma_t)
+    };
+    assert_eq!(*max_value, Some(7.0));
 }

@@ -17,7 +17,7 @@ use penumbra::study::stats::{normal_critical_z, sidak};
 use std::f64::consts::PI;
 
 /// Chi-square tests in this file (for the Šidák correction of α = 0.01).
-const CHI2_TESTS: usize = 14;
+const CHI2_TESTS: usize = 15;
 
 fn scene(body: &str) -> Scene {
     scene_from_str(&format!(
@@ -420,6 +420,56 @@ fn several_lights_selected_uniformly_chi2() {
         Vec3::new(0.1, 0.0, 0.5),
         10,
     );
+}
+
+/// Mitsuba's `sampling_weight`: emitters are chosen in proportion to their weights as soon
+/// as one is not 1, and the densities of the samples (and of the directions a BSDF sample
+/// finds) include that probability.
+#[test]
+fn sampling_weights_choose_the_emitters_chi2() {
+    let s = scene(
+        r#"<shape type="rectangle">
+        <transform name="to_world"><scale value="0.5"/><rotate value="1, 0, 0" angle="90"/><translate value="0, 1, 0"/></transform>
+        <emitter type="area"><float name="radiance" value="3"/><float name="sampling_weight" value="3"/></emitter>
+    </shape>
+    <shape type="sphere">
+        <point name="center" x="1" y="0" z="0"/><float name="radius" value="0.2"/>
+        <emitter type="area"><float name="radiance" value="10"/><float name="sampling_weight" value="0.5"/></emitter>
+    </shape>
+    <emitter type="spot"><rgb name="intensity" value="2"/></emitter>
+    <emitter type="constant"><float name="radiance" value="0.05"/><float name="sampling_weight" value="2"/></emitter>"#,
+    );
+    for (i, w) in [3.0, 0.5, 1.0, 2.0].iter().enumerate() {
+        assert!(
+            (s.emitter_pmf(i) - w / 6.5).abs() < 1e-7,
+            "{i}: {}",
+            s.emitter_pmf(i)
+        );
+    }
+    // The choices follow the weights: a z-test per emitter over 10^5 picks.
+    let n = 100_000;
+    let mut counts = [0usize; 4];
+    for i in 0..n {
+        let u = SampleStream::new(12, i as u64, 0).next_1d();
+        counts[s.pick_emitter(u).unwrap().0] += 1;
+    }
+    for (i, c) in counts.iter().enumerate() {
+        let p = s.emitter_pmf(i) as f64;
+        let z = (*c as f64 - n as f64 * p) / (n as f64 * p * (1.0 - p)).sqrt();
+        assert!(z.abs() < 4.0, "emitter {i}: {c} picks, z = {z:.2}");
+    }
+    check_sampling(
+        "weighted rectangle + sphere + spot + constant",
+        &s,
+        Vec3::new(0.1, 0.0, 0.5),
+        11,
+    );
+    // All weights 1 again: uniform, as without the parameter.
+    let u = scene(
+        r#"<emitter type="spot"><float name="sampling_weight" value="1"/></emitter>
+    <emitter type="point"/>"#,
+    );
+    assert!(u.emitter_weights.is_none());
 }
 
 /// The NEE estimate of the irradiance at `si` (normal `si.frame.n`), unoccluded, with its

@@ -448,6 +448,7 @@ fn every_nested_object_mitsuba_reads_is_accepted() {
     let data = data();
     let mut failures = Vec::new();
     let mut count = 0;
+    let mut refused_unsupported = 0;
     for plugin in supported(&data) {
         let Ok(c) = check_context(plugin) else {
             continue; // reported by every_parameter_mitsuba_reads_is_accepted
@@ -468,6 +469,35 @@ fn every_nested_object_mitsuba_reads_is_accepted() {
             count += 1;
             let scene = scene_with(plugin, &c, &[], "", xml, "");
             if let Err(error) = parse(&scene) {
+                // A nested plugin penumbra does not implement (a shape's irradiancemeter
+                // sensor) is refused as such, not as an unknown parameter; and Mitsuba's
+                // sdfgrid documents that it "cannot be used as an area emitter" (its
+                // sample_position returns nothing), which penumbra refuses at load.
+                let child_plugin = xml
+                    .split("type=\"")
+                    .nth(1)
+                    .and_then(|t| t.split('"').next())
+                    .unwrap_or("");
+                let unsupported_child = !data["plugins"]
+                    .as_array()
+                    .unwrap()
+                    .iter()
+                    .any(|p| s(p, "name") == child_plugin && p["penumbra"] == true);
+                if unsupported_child
+                    && error.contains(&format!(
+                        "unsupported plugin <{tag} type=\"{child_plugin}\">"
+                    ))
+                {
+                    refused_unsupported += 1;
+                    continue;
+                }
+                if key(plugin) == "shape/sdfgrid"
+                    && tag == "emitter"
+                    && error.contains("cannot carry an emitter")
+                {
+                    refused_unsupported += 1;
+                    continue;
+                }
                 failures.push(Failure {
                     plugin: key(plugin),
                     parameter: xml.into(),
@@ -483,6 +513,8 @@ fn every_nested_object_mitsuba_reads_is_accepted() {
         "{}",
         report("nested objects", &failures, count)
     );
+    // the nine shapes' irradiancemeters and the sdfgrid's emitter
+    assert_eq!(refused_unsupported, 10);
 }
 
 /// Every object takes the XML attribute `id` (Mitsuba's props.id(); the data's

@@ -119,13 +119,13 @@ impl ParticleTracer {
         self.trace_light_path(scene, sampler, stats, splats);
     }
 
-    /// Picks an emitter uniformly, as [`Scene::sample_emitter_direction`] does: its index and
-    /// the rescaled sample.
+    /// Picks an emitter as [`Scene::sample_emitter_direction`] does: its index and the
+    /// inverse of its probability ([`ParticleTracer::trace`] has checked that the scene
+    /// has emitters).
     fn pick_emitter(scene: &Scene, u: f32) -> (usize, f32) {
-        let n = scene.emitters.len();
-        let x = u * n as f32;
-        let i = (x as usize).min(n - 1);
-        (i, n as f32)
+        scene
+            .pick_emitter(u)
+            .map_or((0, 0.0), |(i, _, pmf)| (i, 1.0 / pmf))
     }
 
     /// Step 1: an emitter seen directly by the camera.

@@ -26,6 +26,9 @@ pub struct Scene {
     /// The BSDFs of the shapes (and what they nest), with their textures.
     pub materials: Vec<Material>,
     pub emitters: Vec<Emitter>,
+    /// The emitters' `sampling_weight`s as a distribution, when one is not 1 (else emitters
+    /// are chosen uniformly, as Mitsuba does then).
+    pub emitter_weights: Option<crate::sampling::Distribution1D>,
     pub accel: Accel,
     pub camera: Camera,
     /// The image: the film's crop window (by default the whole film).
@@ -340,17 +343,41 @@ impl Scene {
             .collect()
     }
 
-    /// Probability of choosing emitter `i` for next-event estimation: uniform, as in
-    /// Mitsuba. (Choosing in proportion to power was tried: on Mitsuba's regression scenes
-    /// with an area light, an environment map and a point light it doubled the per-pixel
-    /// variance of the env-lit pixels; see docs/performance.md.)
+    /// Probability of choosing emitter `i` for emitter sampling: uniform, as in Mitsuba,
+    /// unless an emitter has a `sampling_weight` other than 1, then in proportion to the
+    /// weights (Mitsuba's `Scene::pdf_emitter`). (Choosing in proportion to power was
+    /// tried: on Mitsuba's regression scenes with an area light, an environment map and a
+    /// point light it doubled the per-pixel variance of the env-lit pixels; see
+    /// docs/performance.md.)
     #[inline]
-    pub fn emitter_pmf(&self, _i: usize) -> f32 {
-        1.0 / self.emitters.len() as f32
+    pub fn emitter_pmf(&self, i: usize) -> f32 {
+        match &self.emitter_weights {
+            None => 1.0 / self.emitters.len() as f32,
+            Some(d) => d.pmf(i) as f32,
+        }
     }
 
-    /// Picks an emitter (uniformly) and a direction to it as seen from `si`; the returned
-    /// pdf includes the selection probability. Visibility is not tested.
+    /// Chooses an emitter for emitter sampling with `u` ∈ [0, 1) (Mitsuba's
+    /// `Scene::sample_emitter`): its index, `u` rescaled to [0, 1) within the choice (so it
+    /// serves again), and the probability of the choice. `None` without emitters.
+    #[inline]
+    pub fn pick_emitter(&self, u: f32) -> Option<(usize, f32, f32)> {
+        let n = self.emitters.len();
+        if n == 0 {
+            return None;
+        }
+        if let Some(d) = &self.emitter_weights {
+            let (i, r) = d.sample_reuse(u);
+            return Some((i, r, d.pmf(i) as f32));
+        }
+        let x = u * n as f32;
+        let i = (x as usize).min(n - 1);
+        let r = (x - i as f32).clamp(0.0, 1.0 - f32::EPSILON / 2.0);
+        Some((i, r, 1.0 / n as f32))
+    }
+
+    /// Picks an emitter ([`Scene::pick_emitter`]) and a direction to it as seen from `si`;
+    /// the returned pdf includes the selection probability. Visibility is not tested.
     pub fn sample_emitter_direction(
         &self,
         si: &SurfaceInteraction,
@@ -362,15 +389,9 @@ impl Scene {
     /// [`Scene::sample_emitter_direction`] from a point `p` that need not lie on a surface
     /// (a scattering event in a medium).
     pub fn sample_emitter_direction_at(&self, p: Vec3, u: Vec2) -> Option<DirectionSample> {
-        if self.emitters.is_empty() {
-            return None;
-        }
-        let n = self.emitters.len();
-        let x = u.x * n as f32;
-        let i = (x as usize).min(n - 1);
-        let ux = (x - i as f32).clamp(0.0, 1.0 - f32::EPSILON / 2.0);
+        let (i, ux, pmf) = self.pick_emitter(u.x)?;
         let mut ds = self.emitters[i].sample_direction(p, Vec2::new(ux, u.y), &self.shapes)?;
-        ds.pdf *= self.emitter_pmf(i);
+        ds.pdf *= pmf;
         Some(ds)
     }
 

@@ -30,6 +30,7 @@ use crate::integrator::{
 use crate::medium::{Heterogeneous, Homogeneous, Medium, MediumKind};
 use crate::phase::{HenyeyGreenstein, PhaseFunction};
 use crate::sampler::Sampler;
+use crate::sampling::Distribution1D;
 use crate::shape::{Cylinder, Disk, Mesh, SdfGrid, Shape, ShapeGeometry, Sphere};
 use crate::texture::bitmap::Wrap;
 use crate::volume::{constant::ConstVolume, GridVolume, Volume};
@@ -220,6 +221,7 @@ pub fn build(desc: &SceneDescription) -> Result<Scene> {
     let mut materials = material::MaterialBuilder::default();
     materials.shift = shift;
     let mut emitters = Vec::new();
+    let mut emitter_weights = Vec::new();
     let mut instances = Vec::new();
     for sd in &desc.shapes {
         if let ShapeKind::Instance { group } = sd.kind {
@@ -260,6 +262,7 @@ pub fn build(desc: &SceneDescription) -> Result<Scene> {
                     )
                 })?;
                 emitters.push(Emitter::Area(area));
+                emitter_weights.push(sd.emitter_weight);
                 shapes[shape_index as usize].emitter = Some((emitters.len() - 1) as u32);
             }
             Some(_) => {
@@ -295,12 +298,23 @@ pub fn build(desc: &SceneDescription) -> Result<Scene> {
     }
     let accel = Accel::build_with_instances(&shapes, 0..top_level, instances, groups);
     let mut environment = None;
-    for e in &desc.emitters {
+    for (e, w) in desc.emitters.iter().zip(&desc.emitter_weights) {
         if matches!(e, EmitterDesc::Constant { .. } | EmitterDesc::EnvMap { .. }) {
             environment = Some(emitters.len() as u32);
         }
         emitters.push(scene_emitter(e, shift, &mut materials)?);
+        emitter_weights.push(*w);
     }
+    // Mitsuba chooses emitters uniformly unless a sampling weight is not 1.
+    let emitter_weights = if emitter_weights.iter().all(|&w| w == 1.0) {
+        None
+    } else {
+        Some(Distribution1D::new(emitter_weights).ok_or_else(|| {
+            Error::Invalid(
+                "the emitters' sampling weights are all 0: no emitter can be sampled".into(),
+            )
+        })?)
+    };
     if emitters.is_empty() {
         warnings.push("the scene has no emitter: the image will be black".into());
     }
@@ -336,6 +350,7 @@ pub fn build(desc: &SceneDescription) -> Result<Scene> {
         shapes,
         materials: materials.materials,
         emitters,
+        emitter_weights,
         accel,
         camera,
         width,
@@ -404,6 +419,7 @@ pub(super) fn volume(v: &VolumeDesc, shift: DMat4) -> Result<Volume> {
             use_grid_bbox,
             trilinear,
             wrap,
+            max_value,
         } => {
             let bad = |message: String| Error::Mesh {
                 path: filename.clone(),
@@ -419,7 +435,11 @@ pub(super) fn volume(v: &VolumeDesc, shift: DMat4) -> Result<Volume> {
                 wrap,
             )
             .map_err(bad)?;
-            Volume::Grid(Box::new(grid))
+            let mut grid = Box::new(grid);
+            if let Some(m) = max_value {
+                grid.max = *m as f32;
+            }
+            Volume::Grid(grid)
         }
     })
 }

@@ -802,11 +802,20 @@ pub(super) fn microfacet_desc(
             let a = a.unwrap_or(TextureDesc::value(0.1));
             (a.clone(), a)
         }
+        // Mitsuba's isotropic-only models (roughplastic) take alpha_u and alpha_v when they
+        // are equal numbers: that is the isotropic alpha.
+        (None, Some(u), Some(v))
+            if !anisotropic
+                && u.constant_scalar().is_some()
+                && u.constant_scalar() == v.constant_scalar() =>
+        {
+            (u.clone(), u)
+        }
         (_, Some(_), _) | (_, _, Some(_)) if !anisotropic => {
             return Err(Error::scene(
                 &o.location,
                 format!(
-                    "{} does not support anisotropic roughness (alpha_u/alpha_v); use alpha",
+                    "{} does not support anisotropic roughness (alpha_u/alpha_v must be equal numbers, or use alpha)",
                     describe(o)
                 ),
             ))

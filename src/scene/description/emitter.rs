@@ -66,13 +66,15 @@ impl EmitterDesc {
     }
 }
 
-pub(super) fn area_emitter_desc(cx: &Ctx, o: &Object) -> Result<EmitterDesc> {
+/// An `area` emitter and its sampling weight.
+pub(super) fn area_emitter_desc(cx: &Ctx, o: &Object) -> Result<(EmitterDesc, f64)> {
     if o.plugin != "area" {
         return Err(unsupported_plugin(o));
     }
     let mut p = Props::new(o);
     let mut ch = Children::new(o);
     let radiance = texture_param(cx, &mut p, &mut ch, "radiance", ColorRole::Emission)?;
+    let weight = common_emitter_params(cx, o, &mut p, &mut ch)?;
     cx.finish(p)?;
     ch.finish()?;
     let radiance = radiance
@@ -82,10 +84,33 @@ pub(super) fn area_emitter_desc(cx: &Ctx, o: &Object) -> Result<EmitterDesc> {
             return Err(Error::scene(&o.location, "radiance must not be negative"));
         }
     }
-    Ok(EmitterDesc::Area { radiance })
+    Ok((EmitterDesc::Area { radiance }, weight))
 }
 
-pub(super) fn scene_emitter_desc(cx: &Ctx, o: &Object) -> Result<EmitterDesc> {
+/// What every Mitsuba emitter reads (its `Emitter` and `Endpoint` base classes): the
+/// `sampling_weight` (relative probability of choosing the emitter for emitter sampling,
+/// default 1), and a nested `<medium>` the emitter sits in, which penumbra's integrators do
+/// not use (as Mitsuba's path tracers, which connect from the shading point; penumbra's
+/// light tracers render no media) but checks.
+fn common_emitter_params(cx: &Ctx, o: &Object, p: &mut Props, ch: &mut Children) -> Result<f64> {
+    let weight = p.float("sampling_weight", 1.0)?;
+    if !(weight >= 0.0 && weight.is_finite()) {
+        return Err(Error::scene(
+            &o.location,
+            format!(
+                "sampling_weight of {} must be finite and >= 0, got {weight}",
+                describe(o)
+            ),
+        ));
+    }
+    for m in ch.with_tag("medium") {
+        medium_index(cx, m)?;
+    }
+    Ok(weight)
+}
+
+/// A scene-level emitter and its sampling weight.
+pub(super) fn scene_emitter_desc(cx: &Ctx, o: &Object) -> Result<(EmitterDesc, f64)> {
     let mut p = Props::new(o);
     let mut ch = Children::new(o);
     let non_negative = |c: DVec3, what: &str| -> Result<DVec3> {
@@ -206,6 +231,8 @@ pub(super) fn scene_emitter_desc(cx: &Ctx, o: &Object) -> Result<EmitterDesc> {
             }
         }
         "constant" => {
+            // Read by Mitsuba's Endpoint base class; a uniform background has no use for it.
+            p.transform("to_world")?;
             let radiance = p
                 .color("radiance", ColorRole::Emission)?
                 .unwrap_or(DVec3::ONE);
@@ -230,6 +257,16 @@ pub(super) fn scene_emitter_desc(cx: &Ctx, o: &Object) -> Result<EmitterDesc> {
                     ));
                 }
             }
+            // Mitsuba's `mis_compensation` samples the map in proportion to its texels minus
+            // their mean (Karlík et al. 2019), which changes the variance, not the image.
+            // penumbra samples in proportion to the texels and says so.
+            if p.boolean("mis_compensation", false)? {
+                cx.warn(format!(
+                    "{}: mis_compensation of {} is not implemented: the map is sampled in proportion to its texels (the same image, another variance)",
+                    o.location,
+                    describe(o)
+                ));
+            }
             EmitterDesc::EnvMap {
                 filename,
                 scale,
@@ -245,7 +282,8 @@ pub(super) fn scene_emitter_desc(cx: &Ctx, o: &Object) -> Result<EmitterDesc> {
         }
         _ => return Err(unsupported_plugin(o)),
     };
+    let weight = common_emitter_params(cx, o, &mut p, &mut ch)?;
     cx.finish(p)?;
     ch.finish()?;
-    Ok(e)
+    Ok((e, weight))
 }

@@ -64,6 +64,37 @@ pub enum IntegratorDesc {
     Radiosity(crate::integrator::radiosity::RadiosityParams),
 }
 
+/// The rendering controls of Mitsuba's integrator base classes: `timeout` (seconds, −1:
+/// none; returned when set), `block_size` (its image blocks; penumbra's 16x16 tiles do not
+/// change the image, so it is only checked) and, for the integrators that render pixel
+/// samples (`sampling`), `samples_per_pass` (deprecated in Mitsuba, which splits the render
+/// into passes of that many samples: the same image in expectation; penumbra's passes are
+/// its own). `hide_emitters` is read by the callers that use it.
+fn rendering_controls(o: &Object, p: &mut Props, sampling: bool) -> Result<Option<f64>> {
+    let timeout = p.float("timeout", -1.0)?;
+    if !timeout.is_finite() || (timeout < 0.0 && timeout != -1.0) {
+        return Err(Error::scene(
+            &o.location,
+            format!(
+                "timeout of {} must be >= 0 seconds or -1 (none), got {timeout}",
+                describe(o)
+            ),
+        ));
+    }
+    if sampling {
+        for name in ["block_size", "samples_per_pass"] {
+            let v = p.int(name, 0)?;
+            if !(0..=u32::MAX as i64).contains(&v) {
+                return Err(Error::scene(
+                    &o.location,
+                    format!("{name} of {} must be >= 0, got {v}", describe(o)),
+                ));
+            }
+        }
+    }
+    Ok((timeout >= 0.0).then_some(timeout))
+}
+
 /// Mitsuba's bounds on `max_depth` (−1: unbounded) and `rr_depth`.
 fn check_depths(o: &Object, max_depth: i64, rr_depth: i64) -> Result<()> {
     if max_depth < -1 {
@@ -86,12 +117,16 @@ fn check_depths(o: &Object, max_depth: i64, rr_depth: i64) -> Result<()> {
 
 /// Mitsuba's `aov` integrator: the `aovs` list of `name:type` pairs and nested integrators
 /// named by their `name` attribute.
-fn aov_desc(o: &Object) -> Result<IntegratorDesc> {
+fn aov_desc(o: &Object) -> Result<(IntegratorDesc, Option<f64>)> {
     let mut p = Props::new(o);
     let spec = p
         .string("aovs")?
         .map(|(s, _)| s.to_string())
         .unwrap_or_default();
+    let timeout = rendering_controls(o, &mut p, true)?;
+    // Read by Mitsuba's base class; the AOVs are geometric and the nested integrators have
+    // their own.
+    p.boolean("hide_emitters", false)?;
     p.finish()?;
     let mut aovs = Vec::new();
     for item in spec.split(',').map(str::trim).filter(|s| !s.is_empty()) {
@@ -140,14 +175,19 @@ fn aov_desc(o: &Object) -> Result<IntegratorDesc> {
             ),
         ));
     }
-    Ok(IntegratorDesc::Aov { aovs, nested })
+    Ok((IntegratorDesc::Aov { aovs, nested }, timeout))
 }
 
-/// The integrator, and whether it was wrapped in Mitsuba's `moment` integrator (which renders
-/// its nested integrator and adds the samples' second moment to the output).
-pub(super) fn integrator_desc(o: &Object) -> Result<(IntegratorDesc, bool)> {
+/// The integrator, whether it was wrapped in Mitsuba's `moment` integrator (which renders
+/// its nested integrator and adds the samples' second moment to the output), and its
+/// `timeout` in seconds, if any (the outermost one's for a wrapped integrator).
+pub(super) fn integrator_desc(o: &Object) -> Result<(IntegratorDesc, bool, Option<f64>)> {
     if o.plugin == "moment" {
-        Props::new(o).finish()?;
+        let mut p = Props::new(o);
+        let timeout = rendering_controls(o, &mut p, true)?;
+        // Read by Mitsuba's base class; the nested integrator has its own.
+        p.boolean("hide_emitters", false)?;
+        p.finish()?;
         let mut nested = None;
         for Child { object: c, .. } in &o.children {
             if c.tag != "integrator" {
@@ -168,21 +208,30 @@ pub(super) fn integrator_desc(o: &Object) -> Result<(IntegratorDesc, bool)> {
                     "a moment integrator cannot nest another moment integrator",
                 ));
             }
-            nested = Some(integrator_desc(c)?.0);
+            nested = Some(integrator_desc(c)?);
         }
-        let nested = nested.ok_or_else(|| {
+        let (nested, _, nested_timeout) = nested.ok_or_else(|| {
             Error::scene(
                 &o.location,
                 format!("{} needs a nested <integrator>", describe(o)),
             )
         })?;
-        return Ok((nested, true));
+        return Ok((nested, true, timeout.or(nested_timeout)));
     }
     if o.plugin == "aov" {
-        return Ok((aov_desc(o)?, false));
+        let (aov, timeout) = aov_desc(o)?;
+        return Ok((aov, false, timeout));
     }
     no_children(o)?;
     let mut p = Props::new(o);
+    // Mitsuba's sampling integrators (path, volpath, volpathmis, direct and the wrappers)
+    // read the sampling controls; its adjoint ptracer reads the timeout only. penumbra's
+    // own integrators read none.
+    let timeout = match o.plugin.as_str() {
+        "path" | "volpath" | "volpathmis" | "direct" => rendering_controls(o, &mut p, true)?,
+        "ptracer" => rendering_controls(o, &mut p, false)?,
+        _ => None,
+    };
     let desc = match o.plugin.as_str() {
         plugin @ ("path" | "volpath" | "volpathmis") => {
             let max_depth = p.int("max_depth", -1)?;
@@ -403,5 +452,5 @@ pub(super) fn integrator_desc(o: &Object) -> Result<(IntegratorDesc, bool)> {
         }
         _ => return Err(unsupported_plugin(o)),
     };
-    Ok((desc, false))
+    Ok((desc, false, timeout))
 }

@@ -20,6 +20,10 @@ pub enum VolumeDesc {
         trilinear: bool,
         /// `wrap_mode`: "clamp", "repeat" or "mirror".
         wrap: String,
+        /// `max_value`: replaces the grid's largest value where the largest is used (the
+        /// majorant of a heterogeneous medium), as in Mitsuba; a value below the grid's
+        /// largest biases the medium, in Mitsuba too.
+        max_value: Option<f64>,
     },
 }
 
@@ -203,12 +207,31 @@ pub(super) fn volume_desc(cx: &Ctx, o: &Object) -> Result<VolumeDesc> {
             // RGB rendering never converts grid values; `raw` and `accel` change nothing.
             p.boolean("raw", false)?;
             p.boolean("accel", true)?;
+            let max_value = match p.take("max_value") {
+                None => None,
+                Some((Value::Float(x), _))
+                    if x.is_finite() && *x >= 0.0 && *x <= f32::MAX as f64 =>
+                {
+                    Some(*x)
+                }
+                Some((Value::Integer(i), _)) if *i >= 0 => Some(*i as f64),
+                Some((v, loc)) => {
+                    return Err(Error::scene(
+                        loc,
+                        format!(
+                            "max_value of {} must be a finite number >= 0, not {v:?}",
+                            describe(o)
+                        ),
+                    ))
+                }
+            };
             VolumeDesc::Grid {
                 filename,
                 to_world,
                 use_grid_bbox,
                 trilinear,
                 wrap,
+                max_value,
             }
         }
         _ => return Err(unsupported_plugin(o)),

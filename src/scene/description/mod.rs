@@ -41,6 +41,9 @@ pub struct SceneDescription {
     /// moment of the samples to the output: penumbra then writes the variance channels, as
     /// `render --variance` does.
     pub moment: bool,
+    /// The integrator's `timeout` (Mitsuba's render-time limit), in seconds: the CLI's
+    /// default `--time-limit`.
+    pub timeout: Option<f64>,
     /// The file has no `<integrator>`: `integrator` is `path` with its defaults.
     pub integrator_missing: bool,
     /// The sensor that is rendered: the file's first, as Mitsuba's `mi.render` renders
@@ -53,6 +56,8 @@ pub struct SceneDescription {
     pub shape_groups: Vec<ShapeGroupDesc>,
     /// Emitters declared at the scene level (point, spot, directional, constant, envmap).
     pub emitters: Vec<EmitterDesc>,
+    /// Their `sampling_weight`s, in the same order.
+    pub emitter_weights: Vec<f64>,
     /// The participating media that shapes (`interior`, `exterior`) and the sensor refer to.
     pub media: Vec<MediumDesc>,
     /// Things the user should know that are not errors (clamped spectra, unused emitters).
@@ -385,7 +390,35 @@ pub fn from_xml(doc: &Document) -> Result<SceneDescription> {
             "the root element must be <scene>",
         ));
     }
-    Props::new(root).finish()?;
+    // The scene's own parameters in Mitsuba 3.9.1 steer its GPU and acceleration-structure
+    // backends (thread reordering, compaction, Embree's robust mode, the kd-tree's build
+    // costs): none changes an image. They are read and checked for their type.
+    let mut p = Props::new(root);
+    for name in [
+        "allow_thread_reordering",
+        "compact_acceleration_structures",
+        "embree_use_robust_intersections",
+        "kd_clip",
+        "kd_retract_bad_splits",
+    ] {
+        p.boolean(name, false)?;
+    }
+    for name in [
+        "kd_intersection_cost",
+        "kd_traversal_cost",
+        "kd_empty_space_bonus",
+    ] {
+        p.float(name, 0.0)?;
+    }
+    for name in [
+        "kd_stop_prims",
+        "kd_max_depth",
+        "kd_min_max_bins",
+        "kd_exact_primitive_threshold",
+    ] {
+        p.int(name, 0)?;
+    }
+    p.finish()?;
     let cx = Ctx {
         resolver: &doc.resolver,
         warnings: RefCell::new(doc.warnings.clone()),
@@ -396,6 +429,7 @@ pub fn from_xml(doc: &Document) -> Result<SceneDescription> {
     let mut sensors = Vec::new();
     let mut shapes = Vec::new();
     let mut emitters = Vec::new();
+    let mut emitter_weights = Vec::new();
     let mut scene_area_emitters = Vec::new();
     for Child { object: o, .. } in &root.children {
         match o.tag.as_str() {
@@ -424,7 +458,8 @@ pub fn from_xml(doc: &Document) -> Result<SceneDescription> {
                 scene_area_emitters.push(Arc::clone(o));
             }
             "emitter" => {
-                let e = scene_emitter_desc(&cx, o)?;
+                let (e, weight) = scene_emitter_desc(&cx, o)?;
+                emitter_weights.push(weight);
                 let is_env = |e: &EmitterDesc| {
                     matches!(e, EmitterDesc::Constant { .. } | EmitterDesc::EnvMap { .. })
                 };
@@ -475,25 +510,28 @@ pub fn from_xml(doc: &Document) -> Result<SceneDescription> {
     // (its test suite passes `path`); penumbra renders it with `path` and its defaults, and
     // the built scene says so (see [`NO_INTEGRATOR_WARNING`]).
     let integrator_missing = integrator.is_none();
-    let (integrator, moment) = integrator.unwrap_or((
+    let (integrator, moment, timeout) = integrator.unwrap_or((
         IntegratorDesc::Path {
             max_depth: -1,
             rr_depth: 5,
             hide_emitters: false,
         },
         false,
+        None,
     ));
     let shape_groups = cx.groups.into_inner().into_iter().map(|(_, g)| g).collect();
     let media = cx.media.into_inner().into_iter().map(|(_, m)| m).collect();
     Ok(SceneDescription {
         integrator,
         moment,
+        timeout,
         integrator_missing,
         sensor,
         sensors,
         shapes,
         shape_groups,
         emitters,
+        emitter_weights,
         media,
         warnings: cx.warnings.into_inner(),
     })

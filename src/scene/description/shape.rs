@@ -52,6 +52,8 @@ pub struct ShapeDesc {
     pub flip_normals: bool,
     pub bsdf: BsdfDesc,
     pub emitter: Option<EmitterDesc>,
+    /// The emitter's `sampling_weight` (1 without an emitter).
+    pub emitter_weight: f64,
     /// Indices into [`SceneDescription::media`] of the media inside and outside the shape.
     pub interior: Option<usize>,
     pub exterior: Option<usize>,
@@ -65,6 +67,22 @@ pub struct ShapeGroupDesc {
     pub location: Location,
 }
 
+/// Reads Mitsuba's `silhouette_sampling_weight` (every shape): a weight of its projective
+/// differentiable integrators, which have no part in rendering an image.
+fn silhouette_weight(p: &mut Props, o: &Object) -> Result<()> {
+    let w = p.float("silhouette_sampling_weight", 1.0)?;
+    if !(w >= 0.0 && w.is_finite()) {
+        return Err(Error::scene(
+            &o.location,
+            format!(
+                "silhouette_sampling_weight of {} must be finite and >= 0, got {w}",
+                describe(o)
+            ),
+        ));
+    }
+    Ok(())
+}
+
 /// Reads `face_normals` (every mesh format).
 fn face_normals(p: &mut Props) -> Result<bool> {
     p.boolean("face_normals", false)
@@ -74,9 +92,18 @@ pub(super) fn shape_desc(cx: &Ctx, o: &Arc<Object>) -> Result<ShapeDesc> {
     let mut p = Props::new(o);
     let to_world = p.transform("to_world")?;
     let mut instance_of = None;
+    silhouette_weight(&mut p, o)?;
     let kind = match o.plugin.as_str() {
-        "rectangle" => ShapeKind::Rectangle,
-        "cube" => ShapeKind::Cube,
+        // Mitsuba's rectangle and cube are meshes and take `face_normals`; their faces are
+        // flat, so face and vertex normals are the same.
+        "rectangle" => {
+            face_normals(&mut p)?;
+            ShapeKind::Rectangle
+        }
+        "cube" => {
+            face_normals(&mut p)?;
+            ShapeKind::Cube
+        }
         "disk" => ShapeKind::Disk,
         "sphere" => {
             let center = p.point("center", DVec3::ZERO)?;
@@ -236,6 +263,22 @@ pub(super) fn shape_desc(cx: &Ctx, o: &Arc<Object>) -> Result<ShapeDesc> {
                 continue;
             }
             match c.tag.as_str() {
+                // Mitsuba keeps a texture nested in a shape as a named attribute of the shape
+                // (for its Python API's eval_attribute); no BSDF or emitter reads it. Checked.
+                "texture" => {
+                    super::texture::texture_desc(cx, c, crate::spectrum::ColorRole::Reflectance)?;
+                }
+                // A shape that is a sensor (Mitsuba's irradiancemeter) measures, it renders
+                // no image.
+                "sensor" => {
+                    return Err(Error::scene(
+                        &c.location,
+                        format!(
+                            "unsupported plugin {}: penumbra does not implement sensors attached to shapes (Mitsuba's irradiancemeter)",
+                            describe(c)
+                        ),
+                    ))
+                }
                 "bsdf" if bsdf.is_none() => bsdf = Some(bsdf_desc(cx, c)?),
                 "emitter" if emitter.is_none() => emitter = Some(area_emitter_desc(cx, c)?),
                 "bsdf" | "emitter" => {
@@ -265,12 +308,17 @@ pub(super) fn shape_desc(cx: &Ctx, o: &Arc<Object>) -> Result<ShapeDesc> {
             BsdfDesc::default_diffuse()
         }
     });
+    let (emitter, emitter_weight) = match emitter {
+        Some((e, w)) => (Some(e), w),
+        None => (None, 1.0),
+    };
     Ok(ShapeDesc {
         kind,
         to_world,
         flip_normals,
         bsdf,
         emitter,
+        emitter_weight,
         interior,
         exterior,
         location: o.location.clone(),
@@ -284,7 +332,12 @@ pub(super) fn shape_group(cx: &Ctx, o: &Arc<Object>) -> Result<usize> {
     if let Some(i) = cx.groups.borrow().iter().position(|(k, _)| *k == key) {
         return Ok(i);
     }
-    Props::new(o).finish()?;
+    // Read by Mitsuba's Shape base class; a group is placed by its instances' transforms
+    // and ignores its own, as Mitsuba's ShapeGroup does.
+    let mut p = Props::new(o);
+    p.transform("to_world")?;
+    silhouette_weight(&mut p, o)?;
+    p.finish()?;
     let mut shapes = Vec::new();
     for Child { object: c, .. } in &o.children {
         if c.tag != "shape" {

@@ -281,12 +281,34 @@ pub(super) fn texture_desc(cx: &Ctx, o: &Object, role: ColorRole) -> Result<Text
             }
         },
         "srgb" => {
+            // `unbounded` lifts Mitsuba's [0, 1] check of an <rgb> reflectance.
+            let unbounded = p.boolean("unbounded", false)?;
+            let role = if unbounded && role == ColorRole::Reflectance {
+                ColorRole::Unbounded
+            } else {
+                role
+            };
             let c = p.color("color", role)?.ok_or_else(|| {
                 Error::scene(&o.location, format!("{} needs a 'color'", describe(o)))
             })?;
             TextureDesc::rgb(c)
         }
-        "uniform" => TextureDesc::value(p.float("value", 1.0)?),
+        "uniform" => {
+            // The wavelength range matters only to spectral variants (outside it the
+            // spectrum is 0); in RGB the value is the value.
+            let lo = p.float("wavelength_min", 360.0)?;
+            let hi = p.float("wavelength_max", 830.0)?;
+            if !(lo < hi) {
+                return Err(Error::scene(
+                    &o.location,
+                    format!(
+                        "wavelength_min ({lo}) of {} must be below wavelength_max ({hi})",
+                        describe(o)
+                    ),
+                ));
+            }
+            TextureDesc::value(p.float("value", 1.0)?)
+        }
         "volume" => {
             // Mitsuba reads `volume` as an object only (a <float> or <rgb> is refused there).
             if let Some((v, loc)) = p.take("volume") {
