@@ -58,7 +58,8 @@ use glam::{DMat3, DMat4, DVec3};
 use markup::{Element, Markup};
 use std::borrow::Cow;
 use std::cell::Cell;
-use std::collections::HashMap;
+use std::cmp::Reverse;
+use std::collections::{BTreeMap, HashMap, HashSet};
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
 use values::{parse_float, parse_integer, parse_version, tokenize};
@@ -253,12 +254,46 @@ struct Parameter {
     is_override: bool,
 }
 
+/// The `$name` parameters in Mitsuba's order: longest name first (so that `$ab` is not read
+/// as `$a` followed by `b` when both exist), names of one length in the order they came.
+#[derive(Default)]
+struct Parameters {
+    by_length: BTreeMap<Reverse<usize>, Vec<Parameter>>,
+    names: HashSet<String>,
+}
+
+impl Parameters {
+    fn contains(&self, name: &str) -> bool {
+        self.names.contains(name)
+    }
+
+    /// Adds a parameter, or (for a name already there) replaces its value.
+    fn set(&mut self, param: Parameter) {
+        let bucket = self.by_length.entry(Reverse(param.name.len())).or_default();
+        if !self.names.insert(param.name.clone()) {
+            if let Some(p) = bucket.iter_mut().find(|p| p.name == param.name) {
+                p.value = param.value;
+            }
+            return;
+        }
+        bucket.push(param);
+    }
+
+    fn iter(&self) -> impl Iterator<Item = &Parameter> {
+        self.by_length.values().flatten()
+    }
+
+    fn iter_mut(&mut self) -> impl Iterator<Item = &mut Parameter> {
+        self.by_length.values_mut().flatten()
+    }
+}
+
 /// The document-order state of a load: parameters, parsed objects, declared ids, the
 /// include chain and the file resolver.
 struct Loader {
-    /// The `$name` parameters, longest name first (Mitsuba's order): overrides, then the
-    /// `<default>`s (the first definition of a name wins).
-    params: Vec<Parameter>,
+    /// The `$name` parameters: overrides, then the `<default>`s (the first definition of a
+    /// name wins).
+    params: Parameters,
     /// Every object parsed so far (nested ones included), by index; references point here.
     arena: Vec<RawObject>,
     /// Every id declared so far, but those of included `<scene>` roots.
@@ -733,21 +768,16 @@ impl Body {
 
 impl Loader {
     fn new(overrides: &[(String, String)], resolver: FileResolver) -> Self {
-        let mut params: Vec<Parameter> = Vec::new();
+        let mut params = Parameters::default();
         for (name, value) in overrides {
-            match params.iter_mut().find(|p| &p.name == name) {
-                // The last override of a name wins.
-                Some(p) => p.value = value.clone(),
-                None => params.push(Parameter {
-                    name: name.clone(),
-                    value: value.clone(),
-                    used: false,
-                    is_override: true,
-                }),
-            }
+            // The last override of a name wins.
+            params.set(Parameter {
+                name: name.clone(),
+                value: value.clone(),
+                used: false,
+                is_override: true,
+            });
         }
-        // Longest first, so that `$ab` is not read as `$a` followed by `b` when both exist.
-        params.sort_by_key(|p| std::cmp::Reverse(p.name.len()));
         Loader {
             params,
             arena: Vec::new(),
@@ -776,7 +806,7 @@ impl Loader {
             return Ok(Cow::Borrowed(value));
         }
         let mut text = value.to_string();
-        for param in &mut self.params {
+        for param in self.params.iter_mut() {
             let key = format!("${}", param.name);
             let mut pos = 0;
             loop {
@@ -1383,24 +1413,16 @@ impl Loader {
         if name.is_empty() {
             return Err(elem.error(format!("{}: the name must be non-empty", elem.desc)));
         }
-        if self.params.iter().any(|p| p.name == name) {
+        if self.params.contains(name) {
             return Ok(());
         }
         // After the names at least as long, as Mitsuba inserts it.
-        let at = self
-            .params
-            .iter()
-            .position(|p| p.name.len() < name.len())
-            .unwrap_or(self.params.len());
-        self.params.insert(
-            at,
-            Parameter {
-                name: name.to_string(),
-                value: value.to_string(),
-                used: false,
-                is_override: false,
-            },
-        );
+        self.params.set(Parameter {
+            name: name.to_string(),
+            value: value.to_string(),
+            used: false,
+            is_override: false,
+        });
         Ok(())
     }
 

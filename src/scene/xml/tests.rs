@@ -2428,3 +2428,40 @@ fn transform_operations_follow_mitsuba() {
     ));
     assert!(e.contains("outside of a <transform>"), "{e}");
 }
+
+/// Many `<default>`s are read in linear time (Mitsuba's sorted list, kept in buckets by name
+/// length), and `$` values cannot make the substitution scan without bound.
+#[test]
+fn many_parameters_are_bounded() {
+    let start = Instant::now();
+    let defaults: String = (0..200_000)
+        .map(|i| format!(r#"<default name="d{i}" value="{i}"/>"#))
+        .collect();
+    let xml = scene(&format!(
+        r#"{defaults}<default name="d0" value="again"/><shape type="$d199999"><string name="s" value="$d0"/></shape>"#
+    ));
+    let root = parse(&xml).unwrap();
+    assert_eq!(first(&root).plugin, "199999");
+    assert_eq!(prop(first(&root), "s"), &Value::String("0".into()));
+    assert!(
+        start.elapsed() < Duration::from_secs(5),
+        "{:?}",
+        start.elapsed()
+    );
+    // Each value with a `$` is searched once per parameter: 200000 parameters times 100
+    // values of 2000 bytes is more than the scan budget.
+    let start = Instant::now();
+    let long = format!("$d0{}", "x".repeat(2000));
+    let values: String = (0..100)
+        .map(|i| format!(r#"<string name="s{i}" value="{long}"/>"#))
+        .collect();
+    let e = error(&scene(&format!(
+        r#"{defaults}<shape type="a">{values}</shape>"#
+    )));
+    assert!(e.contains("scans too much text"), "{e}");
+    assert!(
+        start.elapsed() < Duration::from_secs(10),
+        "{:?}",
+        start.elapsed()
+    );
+}
