@@ -2465,3 +2465,57 @@ fn many_parameters_are_bounded() {
         start.elapsed()
     );
 }
+
+/// test05 and test09: pugixml's error position, and a document of only a declaration.
+#[test]
+fn xml_errors_are_located_like_pugixml() {
+    let xml = "<scene version=\"3.0.0\">\n    <shape type=\"sphere\">\n        <float name=\"radius\" value=\"1.0\"\n    </shape>\n</scene>";
+    match parse(xml) {
+        Err(Error::Xml { message, .. }) => {
+            assert_eq!(message, "Error parsing start element tag (at 4:5)")
+        }
+        other => panic!("expected an XML error, got {other:?}"),
+    }
+    match parse("<?xml version=\"1.0\"?>") {
+        Err(Error::Xml { message, .. }) => {
+            assert!(
+                message.starts_with("No document element found"),
+                "{message}"
+            )
+        }
+        other => panic!("expected an XML error, got {other:?}"),
+    }
+}
+
+/// test23: `<spectrum>` takes one number or increasing wavelength:value pairs.
+#[test]
+fn spectrum_properties_follow_mitsuba() {
+    use crate::spectrum::SpectrumValue;
+    let root = parse(&scene(
+        r#"<phase type="foo"><spectrum name="u" value="0.5"/><spectrum name="s" value="400:0.1 500:0.5 600:0.9"/></phase>"#,
+    ))
+    .unwrap();
+    let phase = first(&root);
+    assert_eq!(
+        prop(phase, "u"),
+        &Value::Spectrum(SpectrumValue::Uniform(0.5))
+    );
+    assert_eq!(
+        prop(phase, "s"),
+        &Value::Spectrum(SpectrumValue::parse("400:0.1, 500:0.5, 600:0.9").unwrap())
+    );
+    assert!(matches!(
+        prop(phase, "s"),
+        Value::Spectrum(SpectrumValue::Sampled { .. })
+    ));
+    for value in ["400:0.5", "500:0.5, 400:0.1, 600:0.9", "foo bar"] {
+        let e = error(&scene(&format!(
+            r#"<spectrum name="value" value="{value}"/>"#
+        )));
+        assert!(e.contains("<spectrum name=\"value\">"), "{value}: {e}");
+    }
+    let e = error(&scene(r#"<spectrum name="v" value="1" filename="x.spd"/>"#));
+    assert!(e.contains("either a \"value\" or a \"filename\""), "{e}");
+    let e = error(&scene(r#"<spectrum name="v"/>"#));
+    assert!(e.contains("either a \"value\" or a \"filename\""), "{e}");
+}
