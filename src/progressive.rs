@@ -5,10 +5,10 @@
 //!
 //! The pass schedule depends only on the image size: pass k holds the samples
 //! [k·p, (k+1)·p) of every pixel, p = [`pass_spp`]. Each pass film is summed in a fixed order
-//! (tiles, then pixels), and passes are added exactly ([`ExactFilm`]: integer sums, so the
-//! grouping of passes does not matter). Hence a render resumed from a checkpoint, and the
-//! merge of any split into parts along pass boundaries, are bit-identical to the same render
-//! made in one go.
+//! (tiles, then pixels), and passes are added exactly ([`ExactFilm`]: exact, canonical sums
+//! at any scale, so the grouping of passes does not matter). Hence a render resumed from a
+//! checkpoint, and the merge of any split into parts along pass boundaries, are bit-identical
+//! to the same render made in one go, in the image and in the checkpoint's bytes.
 
 use crate::error::{Error, Result};
 use crate::film::{ExactFilm, Film, Filter, EXACT_VALUES};
@@ -99,35 +99,49 @@ pub struct Progress {
 /// samples are too noisy to stop on).
 pub const MIN_SPP_FOR_TARGET: u64 = 16;
 
-/// Estimated relative standard error of the current estimate.
+/// Estimated relative standard error of the current estimate. Computed in f64 from the
+/// film's f64 means and variances, so that it does not depend on the scene's scale: a scene
+/// whose radiance is scaled by a power of two gives the same error, bit for bit (variances
+/// of a dim scene underflow f32: 2⁻⁶⁶ radiance makes them ~2⁻¹³²).
 pub fn relative_standard_error(film: &Film, target: ErrorTarget) -> f64 {
-    let mean = film.image();
-    let var = film.sample_variance();
+    let pixels = film.width * film.height;
+    let spp = film.spp();
     match target {
         ErrorTarget::ImageMean => {
-            let n = mean.len() as f64;
+            let n = pixels as f64;
+            let (mut m, mut v) = ([0.0f64; 3], [0.0f64; 3]);
+            for i in 0..pixels {
+                let mean = film.mean_f64(i);
+                let var = film.sample_variance_f64(i, spp);
+                let w = film.weight[i];
+                for c in 0..3 {
+                    m[c] += mean[c];
+                    if w > 0.0 {
+                        v[c] += var[c] / w;
+                    }
+                }
+            }
             let mut worst: f64 = 0.0;
             for c in 0..3 {
-                let m: f64 = mean.iter().map(|p| p[c] as f64).sum::<f64>() / n;
-                let v: f64 = var
-                    .iter()
-                    .zip(&film.weight)
-                    .map(|(v, w)| if *w > 0.0 { v[c] as f64 / w } else { 0.0 })
-                    .sum::<f64>();
-                if m > 0.0 {
-                    worst = worst.max(v.sqrt() / n / m);
+                let mc = m[c] / n;
+                if mc > 0.0 {
+                    worst = worst.max(v[c].sqrt() / n / mc);
                 }
             }
             worst
         }
         ErrorTarget::PerPixel => {
-            let lum =
-                |p: &[f32; 3]| 0.2126 * p[0] as f64 + 0.7152 * p[1] as f64 + 0.0722 * p[2] as f64;
+            let lum = |p: &[f64; 3]| 0.2126 * p[0] + 0.7152 * p[1] + 0.0722 * p[2];
             let (mut acc, mut count) = (0.0, 0usize);
-            for ((m, v), w) in mean.iter().zip(&var).zip(&film.weight) {
-                let lm = lum(m);
-                if lm > 0.0 && *w > 0.0 {
-                    acc += (lum(v) / w).sqrt() / lm;
+            for i in 0..pixels {
+                let (m, v, w) = (
+                    film.mean_f64(i),
+                    film.sample_variance_f64(i, spp),
+                    film.weight[i],
+                );
+                let lm = lum(&m);
+                if lm > 0.0 && w > 0.0 {
+                    acc += (lum(&v) / w).sqrt() / lm;
                     count += 1;
                 }
             }
@@ -204,11 +218,10 @@ pub fn render_progressive(
             sppm: sppm.map(|s| crate::integrator::sppm::SppmState::new(scene, s)),
         },
     };
-    // SPPM's passes run on one pool (a path render's passes make theirs in `render`).
-    let sppm_pool = match sppm {
-        Some(_) => Some(crate::render::thread_pool(settings.threads)?),
-        None => None,
-    };
+    // SPPM's passes run on one pool (a path render's passes make theirs in `render`); the
+    // exact film adds its passes on one too, with the render's thread count.
+    let pool = crate::render::thread_pool(settings.threads)?;
+    let sppm_pool = sppm.map(|_| &pool);
     let start = Instant::now();
     let mut last_checkpoint = Instant::now();
     let reason = loop {
@@ -243,7 +256,7 @@ pub fn render_progressive(
             sampler: None,
             first_sample: progress.samples,
         };
-        let stats = match (sppm, progress.sppm.as_mut(), &sppm_pool) {
+        let stats = match (sppm, progress.sppm.as_mut(), sppm_pool) {
             (Some(integrator), Some(state), Some(pool)) => {
                 let stats =
                     integrator.iterate(scene, &pass_settings, pool, state, spp as u64, &|_, _| {});
@@ -252,8 +265,10 @@ pub fn render_progressive(
             }
             _ => {
                 let out = render(scene, &pass_settings, &|_, _| {})?;
-                progress.exact.add(&out.film).map_err(Error::Invalid)?;
-                progress.film = progress.exact.to_film(scene.filter);
+                let exact = &mut progress.exact;
+                pool.install(|| exact.add(&out.film))
+                    .map_err(|e| Error::Invalid(e.to_string()))?;
+                progress.film = pool.install(|| progress.exact.to_film(scene.filter));
                 out.stats
             }
         };
@@ -323,10 +338,158 @@ pub struct Checkpoint {
     pub sppm: Option<crate::integrator::sppm::SppmState>,
 }
 
-const MAGIC: &[u8; 8] = b"PNBRCKP4";
+/// What a checkpoint or part file says about itself, without its sums: enough to plan a
+/// merge before any film is read.
+#[derive(Clone, Debug)]
+pub struct CheckpointHeader {
+    pub version: String,
+    pub scene_hash: u64,
+    pub seed: u64,
+    pub pass_spp: u32,
+    pub sampler_points: u32,
+    pub first_sample: u64,
+    pub samples: u64,
+    pub plan_spp: u64,
+    pub plan_start: u64,
+    pub part: Option<(u32, u32)>,
+    pub stats: RenderStats,
+    pub filter: Filter,
+    pub width: usize,
+    pub height: usize,
+    /// The film's sample count.
+    pub film_samples: u64,
+}
+
+impl PartialEq for CheckpointHeader {
+    fn eq(&self, o: &Self) -> bool {
+        let stats = |s: &RenderStats| {
+            (
+                s.paths,
+                s.path.rays,
+                s.path.bounces,
+                s.path.rr_terminated,
+                s.nonfinite,
+                s.seconds.to_bits(),
+            )
+        };
+        self.version == o.version
+            && (
+                self.scene_hash,
+                self.seed,
+                self.pass_spp,
+                self.sampler_points,
+            ) == (o.scene_hash, o.seed, o.pass_spp, o.sampler_points)
+            && (
+                self.first_sample,
+                self.samples,
+                self.plan_spp,
+                self.plan_start,
+            ) == (o.first_sample, o.samples, o.plan_spp, o.plan_start)
+            && self.part == o.part
+            && stats(&self.stats) == stats(&o.stats)
+            && self.filter == o.filter
+            && (self.width, self.height, self.film_samples) == (o.width, o.height, o.film_samples)
+    }
+}
+
+/// Today's format: the header, then the exact film's canonical state
+/// ([`ExactFilm::write_state`]: 270 B per pixel plus spilled values), then the SPPM section.
+const MAGIC: &[u8; 8] = b"PNBRCKP5";
+/// The format before exact-at-any-scale films (issue 40): the same header, then every sum as
+/// an i128 count of 2⁻⁴⁸ (240 B per pixel). Read (converted exactly: a count q is q · 2⁻⁴⁸),
+/// never written.
+const MAGIC_V4: &[u8; 8] = b"PNBRCKP4";
 
 /// An SPPM pixel in a checkpoint: L_d (3), N, τ (3), radius, as f64.
 const SPPM_PIXEL_BYTES: usize = 64;
+
+/// The longest version string a checkpoint may hold (a longer one is corrupt).
+const MAX_VERSION_BYTES: usize = 256;
+
+/// Header bytes after the magic, besides the version string: u32 version length, 9 u64, 5
+/// u32, an f64, 5 u64 and an f64.
+const HEADER_FIXED_BYTES: usize = 4 + 9 * 8 + 5 * 4 + 8 + 5 * 8 + 8;
+
+/// Where a file's bytes are: for its error messages.
+fn corrupt(path: &Path, m: &str) -> Error {
+    Error::Invalid(format!(
+        "{}: not a valid penumbra checkpoint or part file ({m})",
+        path.display()
+    ))
+}
+
+/// Parses the header after the magic; returns it and the position after it.
+fn parse_header(bytes: &[u8], path: &Path) -> Result<(CheckpointHeader, usize)> {
+    let bad = |m: &str| corrupt(path, m);
+    let mut r = Reader { b: bytes, pos: 8 };
+    let vlen = r.u32().ok_or_else(|| bad("truncated"))? as usize;
+    if vlen > MAX_VERSION_BYTES {
+        return Err(bad("bad version"));
+    }
+    let version = String::from_utf8(r.take(vlen).ok_or_else(|| bad("truncated"))?.to_vec())
+        .map_err(|_| bad("bad version"))?;
+    let mut u = || r.u64().ok_or_else(|| bad("truncated"));
+    let (scene_hash, seed, first_sample, samples, plan_spp) = (u()?, u()?, u()?, u()?, u()?);
+    let plan_start = u()?;
+    let (width, height, film_samples) = (u()?, u()?, u()?);
+    width
+        .checked_mul(height)
+        .filter(|&n| n <= crate::scene::description::MAX_PIXELS)
+        .ok_or_else(|| bad("resolution"))?;
+    let mut u = || r.u32().ok_or_else(|| bad("truncated"));
+    let (pass_spp, sampler_points, part_i, part_n, filter_kind) = (u()?, u()?, u()?, u()?, u()?);
+    let filter_param = r.f64().ok_or_else(|| bad("truncated"))?;
+    let filter = match filter_kind {
+        0 => Filter::Box,
+        1 => Filter::Tent {
+            radius: filter_param,
+        },
+        2 => Filter::Gaussian {
+            stddev: filter_param,
+        },
+        _ => return Err(bad("unknown filter")),
+    };
+    let mut u = || r.u64().ok_or_else(|| bad("truncated"));
+    let (paths, rays, bounces, rr, nonfinite) = (u()?, u()?, u()?, u()?, u()?);
+    let seconds = r.f64().ok_or_else(|| bad("truncated"))?;
+    if pass_spp == 0 || sampler_points == 0 {
+        return Err(bad("zero pass size"));
+    }
+    if first_sample.checked_add(samples).is_none() || plan_start > plan_spp {
+        return Err(bad("sample range"));
+    }
+    let part = (part_n > 0).then_some((part_i, part_n));
+    if part.is_some_and(|(i, n)| i >= n) {
+        return Err(bad("part index out of range"));
+    }
+    let header = CheckpointHeader {
+        version,
+        scene_hash,
+        seed,
+        pass_spp,
+        sampler_points,
+        first_sample,
+        samples,
+        plan_spp,
+        plan_start,
+        part,
+        stats: RenderStats {
+            paths,
+            path: crate::integrator::PathStats {
+                rays,
+                bounces,
+                rr_terminated: rr,
+            },
+            nonfinite,
+            seconds,
+        },
+        filter,
+        width: width as usize,
+        height: height as usize,
+        film_samples,
+    };
+    Ok((header, r.pos))
+}
 
 impl Checkpoint {
     fn from_progress(p: &Progress, s: &ProgressiveSettings, pass_spp: u32, scene: &Scene) -> Self {
@@ -345,6 +508,27 @@ impl Checkpoint {
             filter: scene.filter,
             exact: p.exact.clone(),
             sppm: p.sppm.clone(),
+        }
+    }
+
+    /// Everything but the sums.
+    pub fn header(&self) -> CheckpointHeader {
+        CheckpointHeader {
+            version: self.version.clone(),
+            scene_hash: self.scene_hash,
+            seed: self.seed,
+            pass_spp: self.pass_spp,
+            sampler_points: self.sampler_points,
+            first_sample: self.first_sample,
+            samples: self.samples,
+            plan_spp: self.plan_spp,
+            plan_start: self.plan_start,
+            part: self.part,
+            stats: self.stats,
+            filter: self.filter,
+            width: self.exact.width,
+            height: self.exact.height,
+            film_samples: self.exact.samples,
         }
     }
 
@@ -388,14 +572,12 @@ impl Checkpoint {
         Ok(())
     }
 
-    /// Writes atomically: to a temporary file next to `path`, synced, then renamed over it, so
-    /// a crash never leaves a half-written checkpoint.
-    pub fn write(&self, path: &Path) -> Result<()> {
-        let err = |e: std::io::Error| Error::Io {
-            path: path.to_path_buf(),
-            cause: e,
-        };
-        let mut buf = Vec::with_capacity(128 + self.exact.values.len() * 16 * EXACT_VALUES);
+    /// The file's bytes (see [`Checkpoint::write`]): a function of the header and the exact
+    /// sums alone, so that two groupings of the same passes give the same bytes.
+    pub fn to_bytes(&self) -> Vec<u8> {
+        let mut buf = Vec::with_capacity(
+            256 + self.exact.width * self.exact.height * (18 * EXACT_VALUES + SPPM_PIXEL_BYTES),
+        );
         buf.extend_from_slice(MAGIC);
         let v = self.version.as_bytes();
         buf.extend_from_slice(&(v.len() as u32).to_le_bytes());
@@ -440,11 +622,7 @@ impl Checkpoint {
             buf.extend_from_slice(&x.to_le_bytes());
         }
         buf.extend_from_slice(&st.seconds.to_le_bytes());
-        for px in &self.exact.values {
-            for v in px {
-                buf.extend_from_slice(&v.to_le_bytes());
-            }
-        }
+        self.exact.write_state(&mut buf);
         match &self.sppm {
             None => buf.push(0),
             Some(st) => {
@@ -470,6 +648,17 @@ impl Checkpoint {
         }
         let checksum = fnv1a(&buf, 0xcbf2_9ce4_8422_2325);
         buf.extend_from_slice(&checksum.to_le_bytes());
+        buf
+    }
+
+    /// Writes atomically: to a temporary file next to `path`, synced, then renamed over it, so
+    /// a crash never leaves a half-written checkpoint.
+    pub fn write(&self, path: &Path) -> Result<()> {
+        let err = |e: std::io::Error| Error::Io {
+            path: path.to_path_buf(),
+            cause: e,
+        };
+        let buf = self.to_bytes();
         let name = path
             .file_name()
             .map(|n| n.to_string_lossy().into_owned())
@@ -482,7 +671,8 @@ impl Checkpoint {
         std::fs::rename(&tmp, path).map_err(err)
     }
 
-    /// Reads a checkpoint or part file written by [`Checkpoint::write`].
+    /// Reads a checkpoint or part file written by [`Checkpoint::write`] (or by the previous
+    /// format, `PNBRCKP4`, converted exactly).
     pub fn read(path: &Path) -> Result<Self> {
         let mut bytes = Vec::new();
         std::fs::File::open(path)
@@ -494,69 +684,87 @@ impl Checkpoint {
         Self::parse(&bytes, path)
     }
 
+    /// Reads only a file's header (a bounded prefix of it), checking that the file is as long
+    /// as its resolution needs: for planning a merge before reading any film. The rest, and
+    /// the checksum, are checked when the whole file is read.
+    pub fn read_header(path: &Path) -> Result<CheckpointHeader> {
+        let io = |cause| Error::Io {
+            path: path.to_path_buf(),
+            cause,
+        };
+        let f = std::fs::File::open(path).map_err(io)?;
+        let len = f.metadata().map_err(io)?.len();
+        let mut prefix = Vec::new();
+        f.take((8 + HEADER_FIXED_BYTES + MAX_VERSION_BYTES) as u64)
+            .read_to_end(&mut prefix)
+            .map_err(io)?;
+        let (magic, h, pos) = Self::parse_magic_and_header(&prefix, path)?;
+        let film =
+            (h.width * h.height) as u64 * if magic == 4 { 16 } else { 18 } * EXACT_VALUES as u64;
+        if len < pos as u64 + film + 1 + 8 {
+            return Err(corrupt(path, "size does not match the resolution"));
+        }
+        Ok(h)
+    }
+
+    fn parse_magic_and_header(bytes: &[u8], path: &Path) -> Result<(u8, CheckpointHeader, usize)> {
+        let bad = |m: &str| corrupt(path, m);
+        let magic = match bytes.get(..8) {
+            Some(m) if m == MAGIC => 5,
+            Some(m) if m == MAGIC_V4 => 4,
+            Some(m) if &m[..7] == b"PNBRCKP" => return Err(bad("written by an older penumbra")),
+            _ => return Err(bad("wrong magic")),
+        };
+        let (h, pos) = parse_header(bytes, path)?;
+        Ok((magic, h, pos))
+    }
+
     /// Parses the bytes of a checkpoint or part file; `path` names it in errors. Never
     /// panics, and allocates only for a film whose bytes are all present.
     pub fn parse(bytes: &[u8], path: &Path) -> Result<Self> {
-        let bad = |m: &str| {
-            Error::Invalid(format!(
-                "{}: not a valid penumbra checkpoint or part file ({m})",
-                path.display()
-            ))
-        };
-        if bytes.len() >= 8 && &bytes[..7] == b"PNBRCKP" && bytes[..8] != MAGIC[..] {
-            return Err(bad("written by an older penumbra"));
-        }
-        if bytes.len() < 16 || &bytes[..8] != MAGIC {
+        let bad = |m: &str| corrupt(path, m);
+        if bytes.len() < 16 {
             return Err(bad("wrong magic"));
         }
+        let (magic, h, pos) = Self::parse_magic_and_header(bytes, path)?;
         let (body, tail) = bytes.split_at(bytes.len() - 8);
         if fnv1a(body, 0xcbf2_9ce4_8422_2325).to_le_bytes() != tail {
             return Err(bad("checksum mismatch"));
         }
-        let mut r = Reader { b: body, pos: 8 };
-        let vlen = r.u32().ok_or_else(|| bad("truncated"))? as usize;
-        let version = String::from_utf8(r.take(vlen).ok_or_else(|| bad("truncated"))?.to_vec())
-            .map_err(|_| bad("bad version"))?;
-        let mut u = || r.u64().ok_or_else(|| bad("truncated"));
-        let (scene_hash, seed, first_sample, samples, plan_spp) = (u()?, u()?, u()?, u()?, u()?);
-        let plan_start = u()?;
-        let (width, height, film_samples) = (u()?, u()?, u()?);
-        let pixels = width
-            .checked_mul(height)
-            .filter(|&n| n <= crate::scene::description::MAX_PIXELS);
-        let pixels = pixels.ok_or_else(|| bad("resolution"))? as usize;
-        let mut u = || r.u32().ok_or_else(|| bad("truncated"));
-        let (pass_spp, sampler_points, part_i, part_n, filter_kind) =
-            (u()?, u()?, u()?, u()?, u()?);
-        let filter_param = r.f64().ok_or_else(|| bad("truncated"))?;
-        let filter = match filter_kind {
-            0 => Filter::Box,
-            1 => Filter::Tent {
-                radius: filter_param,
-            },
-            2 => Filter::Gaussian {
-                stddev: filter_param,
-            },
-            _ => return Err(bad("unknown filter")),
+        if pos > body.len() {
+            return Err(bad("truncated"));
+        }
+        let pixels = h.width * h.height;
+        let (exact, film_end) = if magic == 4 {
+            // PNBRCKP4: i128 counts of 2^-48, converted exactly.
+            let film_bytes = pixels * EXACT_VALUES * 16;
+            let counts = body
+                .get(pos..pos + film_bytes)
+                .ok_or_else(|| bad("size does not match the resolution"))?;
+            let mut exact = ExactFilm::new(h.width, h.height);
+            exact.samples = h.film_samples;
+            for (j, q) in counts.chunks_exact(16).enumerate() {
+                let q = i128::from_le_bytes(q.try_into().map_err(|_| bad("truncated"))?);
+                exact.add_parts(j / EXACT_VALUES, j % EXACT_VALUES, q, -48);
+            }
+            (exact, pos + film_bytes)
+        } else {
+            let (exact, used) =
+                ExactFilm::read_state(&body[pos..], h.width, h.height, h.film_samples)
+                    .map_err(|e| bad(&e.to_string()))?;
+            (exact, pos + used)
         };
-        let mut u = || r.u64().ok_or_else(|| bad("truncated"));
-        let (paths, rays, bounces, rr, nonfinite) = (u()?, u()?, u()?, u()?, u()?);
-        let seconds = r.f64().ok_or_else(|| bad("truncated"))?;
-        let left = r.b.len() - r.pos;
-        let film_bytes = pixels * EXACT_VALUES * 16;
-        if left != film_bytes + 1 && left != film_bytes + 1 + 16 + pixels * SPPM_PIXEL_BYTES {
+        let left = body.len() - film_end;
+        if left != 1 && left != 1 + 16 + pixels * SPPM_PIXEL_BYTES {
             return Err(bad("size does not match the resolution"));
         }
-        let mut exact = ExactFilm::new(width as usize, height as usize);
-        exact.samples = film_samples;
-        for px in exact.values.iter_mut() {
-            for v in px.iter_mut() {
-                *v = r.i128().ok_or_else(|| bad("truncated"))?;
-            }
-        }
+        let mut r = Reader {
+            b: body,
+            pos: film_end,
+        };
         let sppm = match r.take(1).ok_or_else(|| bad("truncated"))?[0] {
-            0 => None,
-            1 => {
+            0 if left == 1 => None,
+            1 if left > 1 => {
                 let mut u = || r.u64().ok_or_else(|| bad("truncated"));
                 let (iterations, photons_emitted) = (u()?, u()?);
                 let mut st = crate::integrator::sppm::SppmState {
@@ -584,38 +792,19 @@ impl Checkpoint {
             }
             _ => return Err(bad("unknown section")),
         };
-        if pass_spp == 0 || sampler_points == 0 {
-            return Err(bad("zero pass size"));
-        }
-        if first_sample.checked_add(samples).is_none() || plan_start > plan_spp {
-            return Err(bad("sample range"));
-        }
-        let part = (part_n > 0).then_some((part_i, part_n));
-        if part.is_some_and(|(i, n)| i >= n) {
-            return Err(bad("part index out of range"));
-        }
         Ok(Checkpoint {
-            version,
-            scene_hash,
-            seed,
-            pass_spp,
-            sampler_points,
-            first_sample,
-            samples,
-            plan_spp,
-            plan_start,
-            part,
-            stats: RenderStats {
-                paths,
-                path: crate::integrator::PathStats {
-                    rays,
-                    bounces,
-                    rr_terminated: rr,
-                },
-                nonfinite,
-                seconds,
-            },
-            filter,
+            version: h.version,
+            scene_hash: h.scene_hash,
+            seed: h.seed,
+            pass_spp: h.pass_spp,
+            sampler_points: h.sampler_points,
+            first_sample: h.first_sample,
+            samples: h.samples,
+            plan_spp: h.plan_spp,
+            plan_start: h.plan_start,
+            part: h.part,
+            stats: h.stats,
+            filter: h.filter,
             exact,
             sppm,
         })
@@ -693,6 +882,7 @@ pub fn render_part(
     let (a, b) = part_range(plan, pass)?;
     let mut exact = ExactFilm::new(scene.width, scene.height);
     let mut stats = RenderStats::default();
+    let pool = crate::render::thread_pool(threads)?;
     let mut at = a;
     while at < b {
         let spp = (pass as u64).min(b - at) as u32;
@@ -707,7 +897,8 @@ pub fn render_part(
             },
             &|_, _| {},
         )?;
-        exact.add(&out.film).map_err(Error::Invalid)?;
+        pool.install(|| exact.add(&out.film))
+            .map_err(|e| Error::Invalid(e.to_string()))?;
         stats.paths += out.stats.paths;
         stats.path += out.stats.path;
         stats.nonfinite += out.stats.nonfinite;
@@ -732,24 +923,28 @@ pub fn render_part(
     })
 }
 
-/// Merges part files (any order) into the render they make up: the samples [0, S) of every
-/// pixel, S the largest spp plan among the parts (or `target_spp`, leaving out parts beyond
-/// it). Refuses,
-/// with one line naming the file(s), parts of another penumbra version, scene, seed,
-/// resolution, filter, pass size or sampler, duplicates and overlaps, parts that do not start
-/// or end on a pass boundary where another part continues, and gaps (naming the missing parts
-/// where their plan tells). The sums are added exactly, so the result is bit-identical to the
-/// one-process render of S spp.
-pub fn merge_parts(
-    mut parts: Vec<(PathBuf, Checkpoint)>,
-    target_spp: Option<u64>,
-) -> Result<Checkpoint> {
+/// The parts to add, in order, and what they make up: checked from their headers alone.
+struct MergePlan {
+    /// Indices into the given parts, by increasing first sample.
+    order: Vec<usize>,
+    end: u64,
+    stats: RenderStats,
+}
+
+/// Checks a set of parts from their headers (see [`merge_parts`]) and orders them.
+fn plan_merge(parts: &[(PathBuf, CheckpointHeader)], target_spp: Option<u64>) -> Result<MergePlan> {
     let name = |p: &Path| p.display().to_string();
-    parts.sort_by_key(|(_, c)| (c.first_sample, c.first_sample + c.samples));
-    let Some((first_path, first)) = parts.first() else {
+    let mut sorted: Vec<usize> = (0..parts.len()).collect();
+    sorted.sort_by_key(|&i| {
+        let c = &parts[i].1;
+        (c.first_sample, c.first_sample + c.samples)
+    });
+    let Some(&first_index) = sorted.first() else {
         return Err(Error::Invalid("merge: no part files given".into()));
     };
-    for (path, c) in &parts {
+    let (first_path, first) = &parts[first_index];
+    for &i in &sorted {
+        let (path, c) = &parts[i];
         let differs = |what: &str| {
             Err(Error::Invalid(format!(
                 "{} was rendered {what} than {}",
@@ -775,9 +970,7 @@ pub fn merge_parts(
         if c.seed != first.seed {
             return differs(&format!("with another seed ({} vs {})", c.seed, first.seed));
         }
-        if (c.exact.width, c.exact.height) != (first.exact.width, first.exact.height)
-            || c.filter != first.filter
-        {
+        if (c.width, c.height) != (first.width, first.height) || c.filter != first.filter {
             return differs("at another resolution or with another filter");
         }
         if c.pass_spp != first.pass_spp || c.sampler_points != first.sampler_points {
@@ -789,7 +982,7 @@ pub fn merge_parts(
     // are named), unless a smaller target is asked for.
     let end =
         target_spp.unwrap_or_else(|| parts.iter().map(|(_, c)| c.plan_spp).max().unwrap_or(0));
-    let label = |p: &Path, c: &Checkpoint| {
+    let label = |p: &Path, c: &CheckpointHeader| {
         let (i, n) = c.part.unwrap_or((0, 0));
         format!(
             "{} (part {i}/{n} of {} spp: samples {}..{})",
@@ -799,16 +992,18 @@ pub fn merge_parts(
             c.first_sample + c.samples
         )
     };
-    let mut merged = ExactFilm::new(first.exact.width, first.exact.height);
+    let mut order = Vec::new();
     let mut stats = RenderStats::default();
     let mut covered = 0u64;
-    let mut prev: Option<(&PathBuf, &Checkpoint)> = None;
-    for (path, c) in &parts {
+    let mut prev: Option<usize> = None;
+    for &i in &sorted {
+        let (path, c) = &parts[i];
         let (a, b) = (c.first_sample, c.first_sample + c.samples);
         if a >= end {
             continue;
         }
-        if let Some((pp, pc)) = prev {
+        if let Some(pi) = prev {
+            let (pp, pc) = &parts[pi];
             if (pc.first_sample, pc.samples) == (a, c.samples) {
                 return Err(Error::Invalid(format!(
                     "duplicate parts: {} and {}",
@@ -818,7 +1013,10 @@ pub fn merge_parts(
             }
         }
         if a < covered {
-            let (pp, pc) = prev.expect("a previous part covers the overlap");
+            let Some(pi) = prev else {
+                return Err(Error::Invalid("overlapping parts".into()));
+            };
+            let (pp, pc) = &parts[pi];
             return Err(Error::Invalid(format!(
                 "overlapping parts: {} and {}",
                 label(pp, pc),
@@ -826,7 +1024,7 @@ pub fn merge_parts(
             )));
         }
         if a > covered {
-            return Err(missing(covered, a, &parts));
+            return Err(missing(covered, a, parts));
         }
         if b > end {
             return Err(Error::Invalid(format!(
@@ -840,7 +1038,6 @@ pub fn merge_parts(
                 label(path, c)
             )));
         }
-        merged.add_exact(&c.exact).map_err(Error::Invalid)?;
         stats.paths = stats.paths.saturating_add(c.stats.paths);
         stats.path.rays = stats.path.rays.saturating_add(c.stats.path.rays);
         stats.path.bounces = stats.path.bounces.saturating_add(c.stats.path.bounces);
@@ -851,32 +1048,97 @@ pub fn merge_parts(
         stats.nonfinite = stats.nonfinite.saturating_add(c.stats.nonfinite);
         stats.seconds += c.stats.seconds;
         covered = b;
-        prev = Some((path, c));
+        prev = Some(i);
+        order.push(i);
     }
     if covered < end {
-        return Err(missing(covered, end, &parts));
+        return Err(missing(covered, end, parts));
     }
-    Ok(Checkpoint {
+    Ok(MergePlan { order, end, stats })
+}
+
+/// The merged render's checkpoint, from the first part's header and the summed film.
+fn merged_checkpoint(first: &CheckpointHeader, plan: MergePlan, exact: ExactFilm) -> Checkpoint {
+    Checkpoint {
         version: first.version.clone(),
         scene_hash: first.scene_hash,
         seed: first.seed,
         pass_spp: first.pass_spp,
         sampler_points: first.sampler_points,
         first_sample: 0,
-        samples: end,
-        plan_spp: end,
+        samples: plan.end,
+        plan_spp: plan.end,
         plan_start: 0,
         part: None,
-        stats,
+        stats: plan.stats,
         filter: first.filter,
-        exact: merged,
+        exact,
         sppm: None,
-    })
+    }
+}
+
+/// Merges part files (any order) into the render they make up: the samples [0, S) of every
+/// pixel, S the largest spp plan among the parts (or `target_spp`, leaving out parts beyond
+/// it). Refuses,
+/// with one line naming the file(s), parts of another penumbra version, scene, seed,
+/// resolution, filter, pass size or sampler, duplicates and overlaps, parts that do not start
+/// or end on a pass boundary where another part continues, and gaps (naming the missing parts
+/// where their plan tells). The sums are added exactly, so the result is bit-identical to the
+/// one-process render of S spp.
+///
+/// The parts are given in memory here; [`merge_part_files`] reads them one at a time.
+pub fn merge_parts(
+    parts: Vec<(PathBuf, Checkpoint)>,
+    target_spp: Option<u64>,
+) -> Result<Checkpoint> {
+    let headers: Vec<(PathBuf, CheckpointHeader)> =
+        parts.iter().map(|(p, c)| (p.clone(), c.header())).collect();
+    let plan = plan_merge(&headers, target_spp)?;
+    let first = &headers[plan.order[0]].1;
+    let mut merged = ExactFilm::new(first.width, first.height);
+    let mut parts: Vec<Option<Checkpoint>> = parts.into_iter().map(|(_, c)| Some(c)).collect();
+    for &i in &plan.order {
+        // Each part is dropped once added.
+        if let Some(c) = parts[i].take() {
+            merged
+                .add_exact(&c.exact)
+                .map_err(|e| Error::Invalid(e.to_string()))?;
+        }
+    }
+    Ok(merged_checkpoint(first, plan, merged))
+}
+
+/// [`merge_parts`] of the part files at `paths`, streaming: the headers are read and checked
+/// first, then each file in turn is read whole (checksum verified), added to the one merged
+/// film and dropped, so that memory holds the merged film and one part whatever the number
+/// of parts. A file that changed between the two reads is refused.
+pub fn merge_part_files(paths: &[PathBuf], target_spp: Option<u64>) -> Result<Checkpoint> {
+    let mut headers = Vec::with_capacity(paths.len());
+    for p in paths {
+        headers.push((p.clone(), Checkpoint::read_header(p)?));
+    }
+    let plan = plan_merge(&headers, target_spp)?;
+    let first = headers[plan.order[0]].1.clone();
+    let mut merged = ExactFilm::new(first.width, first.height);
+    for &i in &plan.order {
+        let (path, header) = &headers[i];
+        let c = Checkpoint::read(path)?;
+        if c.header() != *header {
+            return Err(Error::Invalid(format!(
+                "{}: the file changed while the parts were merged",
+                path.display()
+            )));
+        }
+        merged
+            .add_exact(&c.exact)
+            .map_err(|e| Error::Invalid(e.to_string()))?;
+    }
+    Ok(merged_checkpoint(&first, plan, merged))
 }
 
 /// The error for samples [a, b) that no part holds: the missing parts of the plans the given
 /// parts belong to, or the sample range.
-fn missing(a: u64, b: u64, parts: &[(PathBuf, Checkpoint)]) -> Error {
+fn missing(a: u64, b: u64, parts: &[(PathBuf, CheckpointHeader)]) -> Error {
     let mut names = Vec::new();
     for (_, c) in parts {
         let Some((_, n)) = c.part else { continue };
@@ -927,8 +1189,5 @@ impl Reader<'_> {
     }
     fn f64(&mut self) -> Option<f64> {
         Some(f64::from_le_bytes(self.take(8)?.try_into().ok()?))
-    }
-    fn i128(&mut self) -> Option<i128> {
-        Some(i128::from_le_bytes(self.take(16)?.try_into().ok()?))
     }
 }

@@ -7,6 +7,9 @@
 
 use glam::{Vec2, Vec3};
 
+pub mod exact;
+pub use exact::{ExactError, ExactFilm, ExactSum, EXACT_VALUES};
+
 /// Reconstruction filters (Mitsuba's `rfilter`), all separable: w(x, y) = w(x) w(y), with x
 /// and y in pixels from a pixel's centre.
 ///
@@ -370,15 +373,20 @@ impl Film {
     /// The reconstructed image: weighted mean per pixel (0 where no weight landed).
     pub fn image(&self) -> Vec<[f32; 3]> {
         (0..self.sum.len())
-            .map(|i| {
-                let w = self.weight[i];
-                if w > 0.0 {
-                    self.sum[i].map(|s| (s / w) as f32)
-                } else {
-                    [0.0; 3]
-                }
-            })
+            .map(|i| self.mean_f64(i).map(|m| m as f32))
             .collect()
+    }
+
+    /// Pixel `i`'s weighted mean in f64 (0 where no weight landed): [`Film::image`] before
+    /// its rounding to f32, for computations that must not underflow or overflow f32.
+    #[inline]
+    pub fn mean_f64(&self, i: usize) -> [f64; 3] {
+        let w = self.weight[i];
+        if w > 0.0 {
+            self.sum[i].map(|s| s / w)
+        } else {
+            [0.0; 3]
+        }
     }
 
     /// Samples per pixel accumulated (total samples over the pixel count).
@@ -424,22 +432,28 @@ impl Film {
     pub fn sample_variance(&self) -> Vec<[f32; 3]> {
         let spp = self.spp();
         (0..self.sum.len())
-            .map(|i| {
-                let (w, w2, w3) = (self.weight[i], self.weight_sq[i], self.weight_cube[i]);
-                if w <= 0.0 {
-                    return [0.0; 3];
-                }
-                let dof = w2 - 2.0 * w3 / w + w2 * w2 / (w * w);
-                if dof <= 1e-12 * w2 {
-                    return [0.0; 3]; // a single sample: no estimate
-                }
-                std::array::from_fn(|c| {
-                    let m = self.sum[i][c] / w;
-                    let ss = self.sum_sq_w2[i][c] - 2.0 * m * self.sum_w2[i][c] + m * m * w2;
-                    (spp * ss.max(0.0) / dof * w2 / (w * w)) as f32
-                })
-            })
+            .map(|i| self.sample_variance_f64(i, spp).map(|v| v as f32))
             .collect()
+    }
+
+    /// Pixel `i`'s [`Film::sample_variance`] in f64, before its rounding to f32 (`spp` is
+    /// [`Film::spp`]): a scene scaled by 2⁻⁶⁶ has variances near 2⁻¹³², below f32's range,
+    /// and a scene scaled by 2⁵³ squares near 2¹⁰⁶; in f64 both scale exactly.
+    #[inline]
+    pub fn sample_variance_f64(&self, i: usize, spp: f64) -> [f64; 3] {
+        let (w, w2, w3) = (self.weight[i], self.weight_sq[i], self.weight_cube[i]);
+        if w <= 0.0 {
+            return [0.0; 3];
+        }
+        let dof = w2 - 2.0 * w3 / w + w2 * w2 / (w * w);
+        if dof <= 1e-12 * w2 {
+            return [0.0; 3]; // a single sample: no estimate
+        }
+        std::array::from_fn(|c| {
+            let m = self.sum[i][c] / w;
+            let ss = self.sum_sq_w2[i][c] - 2.0 * m * self.sum_w2[i][c] + m * m * w2;
+            spp * ss.max(0.0) / dof * w2 / (w * w)
+        })
     }
 }
 
@@ -602,217 +616,5 @@ mod tests {
         let mut film = Film::new(1, 1, Filter::Box);
         film.merge(&tile);
         assert_eq!(film.image()[0], [v; 3]);
-    }
-}
-
-/// A film's sums held exactly: every sum as an integer count of 2⁻⁴⁸ (i128), so that adding
-/// films is associative and the sum of a render's passes does not depend on how they are
-/// grouped. Renders accumulate their passes here: a render split into parts (`--part i/N`,
-/// each part summing its own passes) and merged gives the image of the same render made in
-/// one process, bit for bit, for any split.
-///
-/// Each pass film (f64 sums, computed in a fixed order) is rounded once to the 2⁻⁴⁸ grid
-/// (3.6e-15) when it is added; the grid holds sums up to 2⁷⁸ ≈ 3e23 (a sum of squares of
-/// per-sample values up to 5e8 at 1e6 spp). A larger sum is refused with an error instead of
-/// wrapping.
-#[derive(Clone, Debug, PartialEq)]
-pub struct ExactFilm {
-    pub width: usize,
-    pub height: usize,
-    /// Per pixel, in [`Film`]'s order: sum (3), sum_sq (3), sum_w2 (3), sum_sq_w2 (3),
-    /// weight, weight_sq, weight_cube.
-    pub values: Vec<[i128; EXACT_VALUES]>,
-    pub samples: u64,
-}
-
-/// Sums per pixel in an [`ExactFilm`].
-pub const EXACT_VALUES: usize = 15;
-
-const EXACT_SCALE: f64 = 281474976710656.0; // 2^48
-const EXACT_LIMIT: f64 = 85070591730234615865843651857942052864.0; // 2^126
-
-fn to_fixed(v: f64) -> Option<i128> {
-    let x = (v * EXACT_SCALE).round();
-    (x.abs() < EXACT_LIMIT).then_some(x as i128)
-}
-
-impl ExactFilm {
-    pub fn new(width: usize, height: usize) -> Self {
-        ExactFilm {
-            width,
-            height,
-            values: vec![[0; EXACT_VALUES]; width * height],
-            samples: 0,
-        }
-    }
-
-    /// Adds a film of the same size; `Err` names the pixel whose sum leaves the exact range
-    /// (nothing is added then).
-    pub fn add(&mut self, f: &Film) -> Result<(), String> {
-        if (f.width, f.height) != (self.width, self.height) {
-            return Err(format!(
-                "cannot add a {}x{} film to a {}x{} one",
-                f.width, f.height, self.width, self.height
-            ));
-        }
-        let mut next = self.values.clone();
-        for (i, acc) in next.iter_mut().enumerate() {
-            let v = [
-                f.sum[i][0],
-                f.sum[i][1],
-                f.sum[i][2],
-                f.sum_sq[i][0],
-                f.sum_sq[i][1],
-                f.sum_sq[i][2],
-                f.sum_w2[i][0],
-                f.sum_w2[i][1],
-                f.sum_w2[i][2],
-                f.sum_sq_w2[i][0],
-                f.sum_sq_w2[i][1],
-                f.sum_sq_w2[i][2],
-                f.weight[i],
-                f.weight_sq[i],
-                f.weight_cube[i],
-            ];
-            for (a, x) in acc.iter_mut().zip(v) {
-                *a = to_fixed(x)
-                    .and_then(|q| a.checked_add(q))
-                    .filter(|s| (*s as f64).abs() < EXACT_LIMIT)
-                    .ok_or_else(|| {
-                        format!(
-                            "pixel ({}, {}): a sum ({x:e}) is too large to accumulate exactly",
-                            i % self.width,
-                            i / self.width
-                        )
-                    })?;
-            }
-        }
-        self.values = next;
-        self.samples = self.samples.saturating_add(f.samples);
-        Ok(())
-    }
-
-    /// Adds another exact film of the same size (exactly: integer sums).
-    pub fn add_exact(&mut self, o: &ExactFilm) -> Result<(), String> {
-        if (o.width, o.height) != (self.width, self.height) {
-            return Err("films of different sizes".into());
-        }
-        for (a, b) in self.values.iter_mut().zip(&o.values) {
-            for (x, y) in a.iter_mut().zip(b) {
-                *x = x
-                    .checked_add(*y)
-                    .filter(|s| (*s as f64).abs() < EXACT_LIMIT)
-                    .ok_or("a sum is too large to accumulate exactly")?;
-            }
-        }
-        self.samples = self.samples.saturating_add(o.samples);
-        Ok(())
-    }
-
-    /// The f64 film of these sums (each rounded to the nearest f64).
-    pub fn to_film(&self, filter: Filter) -> Film {
-        let mut f = Film::new(self.width, self.height, filter);
-        let g = |q: i128| q as f64 / EXACT_SCALE;
-        for (i, v) in self.values.iter().enumerate() {
-            for c in 0..3 {
-                f.sum[i][c] = g(v[c]);
-                f.sum_sq[i][c] = g(v[3 + c]);
-                f.sum_w2[i][c] = g(v[6 + c]);
-                f.sum_sq_w2[i][c] = g(v[9 + c]);
-            }
-            f.weight[i] = g(v[12]);
-            f.weight_sq[i] = g(v[13]);
-            f.weight_cube[i] = g(v[14]);
-        }
-        f.samples = self.samples;
-        f
-    }
-}
-
-#[cfg(test)]
-mod exact_tests {
-    use super::*;
-
-    fn film(values: &[f64]) -> Film {
-        let mut f = Film::new(values.len(), 1, Filter::Box);
-        for (i, v) in values.iter().enumerate() {
-            f.sum[i] = [*v, -*v, v * 3.0];
-            f.sum_sq[i] = [v * v; 3];
-            f.weight[i] = 1.0;
-        }
-        f.samples = values.len() as u64;
-        f
-    }
-
-    #[test]
-    fn exact_sums_do_not_depend_on_grouping() {
-        // f64 addition of these is not associative: (a + b) + c != a + (b + c).
-        let (a, b, c) = (film(&[0.1, 1e9]), film(&[0.2, -1e9]), film(&[0.3, 1e-7]));
-        let mut fa = a.clone();
-        fa.add(&b);
-        fa.add(&c);
-        let mut fb = b.clone();
-        fb.add(&c);
-        let mut fb2 = a.clone();
-        fb2.add(&fb);
-        assert_ne!(fa.sum, fb2.sum, "the f64 sums differ with the grouping");
-        let mut left = ExactFilm::new(2, 1);
-        left.add(&a).unwrap();
-        left.add(&b).unwrap();
-        left.add(&c).unwrap();
-        let mut bc = ExactFilm::new(2, 1);
-        bc.add(&b).unwrap();
-        bc.add(&c).unwrap();
-        let mut right = ExactFilm::new(2, 1);
-        right.add(&a).unwrap();
-        right.add_exact(&bc).unwrap();
-        assert_eq!(left, right);
-        let f = left.to_film(Filter::Box);
-        assert!((f.sum[0][0] - 0.6).abs() < 4e-15);
-        assert!((f.sum[1][0] - 1e-7).abs() < 4e-15);
-        assert_eq!(f.samples, 6);
-    }
-
-    /// Every one of the 15 sums per pixel comes back from the exact film in its own slot
-    /// (each a distinct dyadic value, exact in the 2⁻⁴⁸ fixed point).
-    #[test]
-    fn every_sum_round_trips_through_the_exact_film() {
-        let mut f = Film::new(2, 1, Filter::Box);
-        let mut k = 0.0;
-        let mut next = || {
-            k += 1.0;
-            k * 0.125
-        };
-        for i in 0..2 {
-            f.sum[i] = [next(), next(), next()];
-            f.sum_sq[i] = [next(), next(), next()];
-            f.sum_w2[i] = [next(), next(), next()];
-            f.sum_sq_w2[i] = [next(), next(), next()];
-            f.weight[i] = next();
-            f.weight_sq[i] = next();
-            f.weight_cube[i] = next();
-        }
-        f.samples = 7;
-        let mut e = ExactFilm::new(2, 1);
-        e.add(&f).unwrap();
-        let g = e.to_film(Filter::Box);
-        assert_eq!(g.sum, f.sum);
-        assert_eq!(g.sum_sq, f.sum_sq);
-        assert_eq!(g.sum_w2, f.sum_w2);
-        assert_eq!(g.sum_sq_w2, f.sum_sq_w2);
-        assert_eq!(g.weight, f.weight);
-        assert_eq!(g.weight_sq, f.weight_sq);
-        assert_eq!(g.weight_cube, f.weight_cube);
-        assert_eq!(g.samples, 7);
-    }
-
-    #[test]
-    fn sums_out_of_range_are_refused_and_leave_the_film_unchanged() {
-        let mut e = ExactFilm::new(1, 1);
-        e.add(&film(&[1e9])).unwrap();
-        let before = e.clone();
-        let err = e.add(&film(&[6e11])).unwrap_err();
-        assert!(err.contains("too large"), "{err}");
-        assert_eq!(e, before);
     }
 }
