@@ -466,7 +466,7 @@ fn include_key(path: &Path) -> PathBuf {
 fn raw_attribute(file: &SourceFile, node: Element, name: &str) -> Result<Option<String>> {
     match node.attributes().find(|a| a.name() == name) {
         Some(attr) => attr.value().map(|v| Some(v.into_owned())).map_err(|e| {
-            Error::scene(
+            scene_error(
                 &file.location(e.offset),
                 format!("{} in <{}>", e.message, node.name()),
             )
@@ -497,7 +497,7 @@ impl Elem<'_, '_> {
 
     /// An error located at this element.
     fn error(&self, message: impl Into<String>) -> Error {
-        Error::scene(&self.location, message)
+        scene_error(&self.location, message)
     }
 
     /// Rejects attributes other than `allowed`.
@@ -619,13 +619,47 @@ impl Elem<'_, '_> {
     }
 }
 
-/// Cuts long attribute values down for messages.
+/// Cuts long attribute values down for messages, with [`one_line`].
 fn shorten(text: &str) -> Cow<'_, str> {
     const MAX: usize = 60;
     match text.char_indices().nth(MAX) {
-        Some((cut, _)) => Cow::Owned(format!("{}...", text.get(..cut).unwrap_or_default())),
-        None => Cow::Borrowed(text),
+        Some((cut, _)) => Cow::Owned(format!(
+            "{}...",
+            one_line(text.get(..cut).unwrap_or_default())
+        )),
+        None => one_line(text),
     }
+}
+
+/// Escapes control characters (a value may hold a line break written `&#10;`), so that a
+/// message stays one line.
+fn one_line(text: &str) -> Cow<'_, str> {
+    if !text.chars().any(char::is_control) {
+        return Cow::Borrowed(text);
+    }
+    Cow::Owned(
+        text.chars()
+            .map(|c| {
+                if c.is_control() {
+                    c.escape_default().to_string()
+                } else {
+                    c.to_string()
+                }
+            })
+            .collect(),
+    )
+}
+
+/// [`Error::scene`] with the message on one line (it may quote values or other modules'
+/// messages).
+fn scene_error(location: &Location, message: impl Into<String>) -> Error {
+    let message = message.into();
+    Error::scene(location, one_line(&message))
+}
+
+/// A path for a message, on one line.
+fn shown(path: &Path) -> String {
+    one_line(&path.display().to_string()).into_owned()
 }
 
 /// `<tag type=".." id=".." name=".." filename="..">`: the element as messages name it.
@@ -884,7 +918,7 @@ impl Loader {
             let name = attr.name();
             let raw = attr.value().map_err(|e| {
                 let at = file.location(e.offset);
-                Error::scene(
+                scene_error(
                     &at,
                     format!(
                         "{} (attribute \"{name}\" of <{tag}>, at line {}, column {})",
@@ -894,7 +928,7 @@ impl Loader {
             })?;
             let value = self.substitute(&raw).map_err(|message| {
                 let raw_desc = describe_node(node);
-                Error::scene(
+                scene_error(
                     &location,
                     format!("{message} in attribute \"{name}\" of {raw_desc}"),
                 )
@@ -916,7 +950,7 @@ impl Loader {
     fn read_version(&self, file: &mut SourceFile, root: Element) -> Result<()> {
         let location = file.node_location(root);
         let Some(version) = raw_attribute(file, root, "version")? else {
-            return Err(Error::scene(
+            return Err(scene_error(
                 &location,
                 format!(
                     "missing attribute \"version\" in root element <{}>",
@@ -925,7 +959,7 @@ impl Loader {
             ));
         };
         let parsed = parse_version(&version).ok_or_else(|| {
-            Error::scene(
+            scene_error(
                 &location,
                 format!(
                     "invalid version number \"{}\" in root element <{}> (expected major.minor.patch)",
@@ -996,7 +1030,7 @@ impl Loader {
         depth: usize,
     ) -> Result<()> {
         if depth > MAX_NESTING_DEPTH {
-            return Err(Error::scene(
+            return Err(scene_error(
                 &file.node_location(node),
                 format!("elements are nested more than {MAX_NESTING_DEPTH} levels deep"),
             ));
@@ -1182,11 +1216,11 @@ impl Loader {
             Some(IdDecl {
                 target: IdTarget::Root,
                 ..
-            }) => Err(Error::scene(
+            }) => Err(scene_error(
                 location,
                 format!("{desc} refers to the scene root, which contains it: cyclic reference"),
             )),
-            None => Err(Error::scene(
+            None => Err(scene_error(
                 location,
                 format!("{desc} refers to unknown id \"{id}\""),
             )),
@@ -1229,7 +1263,7 @@ impl Loader {
             } => {
                 let index = self.lookup(id, location, desc)?;
                 if state[index] == ResolveState::InProgress {
-                    return Err(Error::scene(
+                    return Err(scene_error(
                         location,
                         format!(
                             "{desc} refers to {} at {}, which contains it: cyclic reference",
@@ -1238,7 +1272,7 @@ impl Loader {
                     ));
                 }
                 if depth > MAX_REFERENCE_DEPTH {
-                    return Err(Error::scene(
+                    return Err(scene_error(
                         location,
                         format!(
                             "{desc}: references and nested objects chain more than {MAX_REFERENCE_DEPTH} levels deep"
@@ -1346,7 +1380,7 @@ impl Loader {
                     .map_err(|e| {
                         elem.error(format!(
                             "cannot read spectrum file \"{}\": {e}",
-                            path.display()
+                            shown(&path)
                         ))
                     })?;
                 SpectrumValue::from_spd(&bytes)
@@ -1397,7 +1431,7 @@ impl Loader {
             return Err(elem.error(format!(
                 "{}: folder \"{}\" not found",
                 elem.desc,
-                dir.display()
+                shown(&dir)
             )));
         }
         self.resolver.prepend(dir);
@@ -1465,7 +1499,7 @@ impl Loader {
             return Err(elem.error(format!(
                 "{}: included file \"{}\" not found",
                 elem.desc,
-                path.display()
+                shown(&path)
             )));
         }
         if self.include_stack.len() >= MAX_INCLUDE_DEPTH {
@@ -1479,8 +1513,8 @@ impl Loader {
             let chain: Vec<String> = self
                 .include_stack
                 .iter()
-                .map(|frame| frame.shown.display().to_string())
-                .chain(std::iter::once(path.display().to_string()))
+                .map(|frame| shown(&frame.shown))
+                .chain(std::iter::once(shown(&path)))
                 .collect();
             return Err(elem.error(format!("cyclic include: {}", chain.join(" -> "))));
         }
@@ -1488,7 +1522,7 @@ impl Loader {
             crate::io::read_file_limited(&path, crate::io::MAX_SCENE_FILE_BYTES).map_err(|e| {
                 elem.error(format!(
                     "cannot read included file \"{}\": {e}",
-                    path.display()
+                    shown(&path)
                 ))
             })?;
         let text = markup::to_utf8(&bytes);
@@ -1653,7 +1687,7 @@ fn ensure_leaf(file: &SourceFile, elem: &Elem) -> Result<()> {
     match elem.node.children().next() {
         Some(child) => {
             let desc = describe_node(child);
-            Err(Error::scene(
+            Err(scene_error(
                 &file.node_location(child),
                 format!("{desc} cannot appear inside {}", elem.desc),
             ))
