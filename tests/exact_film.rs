@@ -287,6 +287,19 @@ fn multisets() -> Vec<Vec<f64>> {
             v.push(-x);
             v.extend([1e300, 1.0, -1e300]);
         }
+        // Ties: x and half its ulp (either sign), so that the exact sum lies halfway
+        // between two doubles.
+        if case % 4 == 1 {
+            let x = v[0];
+            let half_ulp = (x.next_up() - x) / 2.0;
+            if half_ulp != 0.0 {
+                v.push(if rng.below(2) == 0 {
+                    half_ulp
+                } else {
+                    -half_ulp
+                });
+            }
+        }
         if case % 7 == 0 {
             v.extend([f64::MAX, f64::MAX, -f64::MAX, f64::from_bits(1), -5e-324]);
         }
@@ -296,6 +309,12 @@ fn multisets() -> Vec<Vec<f64>> {
     sets.push(vec![1e300, -1e300]);
     sets.push(vec![0.1, 0.2, 0.3]);
     sets.push(vec![f64::from_bits(1); 3]);
+    // Ties to even at 1, in the subnormals and at the overflow threshold 2^1024 − 2^970.
+    sets.push(vec![1.0, 2f64.powi(-53)]);
+    sets.push(vec![1.0, 3.0 * 2f64.powi(-53)]);
+    sets.push(vec![f64::MAX, 2f64.powi(970)]);
+    sets.push(vec![f64::MAX, 2f64.powi(969)]);
+    sets.push(vec![-f64::MAX, -2f64.powi(970), 2f64.powi(-1074)]);
     sets
 }
 
