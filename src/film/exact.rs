@@ -309,12 +309,20 @@ fn inline_to_f64(m: i128, e: i16) -> f64 {
     let mag = m.unsigned_abs();
     let top = 127 - mag.leading_zeros() as i32 + e;
     if (-1022..=1023).contains(&top) {
-        // m rounds once to 53 bits (ties to even, at any exponent); the scaling by 2^e is
-        // then exact, or overflows to ∞ exactly when the rounded value does.
-        let r = match i64::try_from(m) {
-            Ok(s) => s as f64,
-            Err(_) => m as f64,
+        // |m| rounds once to 53 bits (ties to even, at any exponent): as an i64 directly, or
+        // its top 63 bits with the rest as a sticky bit (below the rounding position, so
+        // the rounding is the same; an i64 conversion is one instruction, an i128 one a
+        // call). The scaling by 2^e is then exact, or overflows to ∞ exactly when the
+        // rounded value does.
+        let lz = mag.leading_zeros();
+        let (r, e) = if lz >= 65 {
+            (mag as u64 as i64 as f64, e)
+        } else {
+            let sh = 65 - lz;
+            let sticky = (mag & ((1u128 << sh) - 1) != 0) as u64;
+            ((((mag >> sh) as u64) | sticky) as i64 as f64, e + sh as i32)
         };
+        let r = if m < 0 { -r } else { r };
         if e >= -1022 {
             r * pow2(e)
         } else {
@@ -357,46 +365,53 @@ fn decompose(x: f64) -> (i128, i32) {
 
 /// m · 2^e + a · 2^f for canonical inline operands (odd or zero mantissas), if the sum is
 /// inline within `cap` bits; None sends the caller to the exact slow path.
+///
+/// Only a sum of two terms with the same exponent can have trailing zeros (both odd): with
+/// different exponents the lower term's lowest bit is the sum's, so the sum is already odd.
 #[inline(always)]
-fn add_inline(cap: u32, m: i128, e: i32, a: i128, f: i32) -> Option<(i128, i16)> {
+fn add_inline(cap: Cap, m: i128, e: i32, a: i128, f: i32) -> Option<(i128, i16)> {
     if a == 0 {
         return Some((m, e as i16));
     }
-    if a.unsigned_abs() >> cap != 0 {
+    let limit = cap.limit;
+    if a.unsigned_abs() >= limit {
         return None;
     }
-    let (hi, ehi, lo, elo) = if m == 0 {
-        (a, f, 0, f)
-    } else if e >= f {
-        (m, e, a, f)
-    } else {
-        (a, f, m, e)
-    };
+    let exponent = |x: i32| i16::try_from(x).ok().filter(|&x| x != SPILLED);
+    if m == 0 {
+        return Some((a, exponent(f)?));
+    }
+    if e == f {
+        // Both below 2^cap ≤ 2^125 in magnitude: no overflow.
+        let s = m + a;
+        if s == 0 {
+            return Some((0, 0));
+        }
+        let tz = s.trailing_zeros();
+        let r = s >> tz;
+        if r.unsigned_abs() >= limit {
+            return None;
+        }
+        return Some((r, exponent(e + tz as i32)?));
+    }
+    let (hi, ehi, lo, elo) = if e > f { (m, e, a, f) } else { (a, f, m, e) };
     let d = (ehi - elo) as u32;
     let bits = 128 - hi.unsigned_abs().leading_zeros();
-    if d + bits > cap {
+    if d + bits > cap.bits {
         return None;
     }
-    // Both terms below 2^cap ≤ 2^125 in magnitude: no overflow.
+    // Both terms below 2^cap ≤ 2^125 in magnitude: no overflow; lo is odd, so is the sum.
     let s = (hi << d) + lo;
-    if s == 0 {
-        return Some((0, 0));
-    }
-    let tz = s.trailing_zeros();
-    let r = s >> tz;
-    if r.unsigned_abs() >> cap != 0 {
+    if s.unsigned_abs() >= limit {
         return None;
     }
-    let e = i16::try_from(elo + tz as i32)
-        .ok()
-        .filter(|&e| e != SPILLED)?;
-    Some((r, e))
+    Some((s, exponent(elo)?))
 }
 
 /// Adds a · 2^f (a canonical term) to an inline slot; false when the slot is spilled or the
 /// sum does not fit inline.
 #[inline(always)]
-fn add_fast(cap: u32, m: &mut i128, e: &mut i16, a: i128, f: i32) -> bool {
+fn add_fast(cap: Cap, m: &mut i128, e: &mut i16, a: i128, f: i32) -> bool {
     if *e == SPILLED {
         return false;
     }
@@ -437,6 +452,23 @@ fn add_slow(cap: u32, m: &mut i128, e: &mut i16, stored: Option<Big>, term: &Big
 
 fn check_cap(bits: u32) -> u32 {
     bits.clamp(1, INLINE_BITS)
+}
+
+/// An inline capacity: mantissas below 2^bits (`limit`, computed once per film add instead of
+/// a 128-bit shift per value).
+#[derive(Clone, Copy)]
+struct Cap {
+    bits: u32,
+    limit: u128,
+}
+
+impl Cap {
+    fn new(bits: u32) -> Cap {
+        Cap {
+            bits,
+            limit: 1u128 << bits,
+        }
+    }
 }
 
 /// One exact sum: the accumulator of an [`ExactFilm`] value, on its own.
@@ -483,7 +515,7 @@ impl ExactSum {
         }
         let tz = m.trailing_zeros();
         let (a, f) = (m >> tz, e.saturating_add(tz as i32));
-        if !add_fast(self.cap, &mut self.m, &mut self.e, a, f) {
+        if !add_fast(Cap::new(self.cap), &mut self.m, &mut self.e, a, f) {
             let stored = self.big.take();
             self.big = add_slow(
                 self.cap,
@@ -659,7 +691,7 @@ impl ExactFilm {
                 }
             }
         }
-        let cap = self.cap;
+        let (cap, fast) = (self.cap, Cap::new(self.cap));
         self.m
             .par_chunks_mut(CHUNK * EXACT_VALUES)
             .zip(self.e.par_chunks_mut(CHUNK * EXACT_VALUES))
@@ -675,7 +707,7 @@ impl ExactFilm {
                     let v = film_values(f, first + p);
                     for k in 0..EXACT_VALUES {
                         let (a, fx) = decompose(v[k]);
-                        if a == 0 || add_fast(cap, &mut m[k], &mut e[k], a, fx) {
+                        if a == 0 || add_fast(fast, &mut m[k], &mut e[k], a, fx) {
                             continue;
                         }
                         let key = (p * EXACT_VALUES + k) as u32;
@@ -697,7 +729,7 @@ impl ExactFilm {
         if (o.width, o.height) != (self.width, self.height) {
             return Err(ExactError::Size(o.width, o.height, self.width, self.height));
         }
-        let cap = self.cap;
+        let (cap, fast) = (self.cap, Cap::new(self.cap));
         self.m
             .par_chunks_mut(CHUNK * EXACT_VALUES)
             .zip(self.e.par_chunks_mut(CHUNK * EXACT_VALUES))
@@ -715,7 +747,7 @@ impl ExactFilm {
                             None => continue,
                         }
                     } else {
-                        if om[j] == 0 || add_fast(cap, &mut m[j], &mut e[j], om[j], oe[j] as i32) {
+                        if om[j] == 0 || add_fast(fast, &mut m[j], &mut e[j], om[j], oe[j] as i32) {
                             continue;
                         }
                         big = Big::from_parts(om[j], oe[j] as i32);
@@ -740,7 +772,7 @@ impl ExactFilm {
         let j = pixel * EXACT_VALUES + k;
         let tz = m.trailing_zeros();
         let (a, f) = (m >> tz, e.saturating_add(tz as i32));
-        if add_fast(self.cap, &mut self.m[j], &mut self.e[j], a, f) {
+        if add_fast(Cap::new(self.cap), &mut self.m[j], &mut self.e[j], a, f) {
             return;
         }
         let spill = &mut self.spill[pixel / CHUNK];
