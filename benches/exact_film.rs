@@ -39,7 +39,7 @@ fn term(rng: &mut Rng, kind: &str, i: usize) -> f64 {
     match kind {
         "unit" => rng.double(1022..1025, false),
         "40-binades" => rng.double(1003..1043, true),
-        _ if i % 64 == 0 => 1e60,
+        _ if i.is_multiple_of(64) => 1e60,
         _ => rng.double(1022..1025, false),
     }
 }
