@@ -35,6 +35,7 @@ use crate::shape::{Cylinder, Disk, Mesh, SdfGrid, Shape, ShapeGeometry, Sphere};
 use crate::texture::bitmap::Wrap;
 use crate::volume::{constant::ConstVolume, GridVolume, Volume};
 use glam::{DMat3, DMat4, DVec3, Vec2, Vec3};
+use rayon::prelude::*;
 
 /// The integrator of `d`; `world_origin` is the camera's world position (the scene is built
 /// around the camera).
@@ -223,7 +224,21 @@ pub fn build(desc: &SceneDescription) -> Result<Scene> {
     let mut emitters = Vec::new();
     let mut emitter_weights = Vec::new();
     let mut instances = Vec::new();
-    for sd in &desc.shapes {
+    // Meshes are read and transformed in parallel (a scene of hundreds of PLY files, such as
+    // Mitsuba's LEGO tutorial, spends its load there besides the BVH build), then taken in
+    // description order, with their warnings, exactly as a serial load would.
+    let mut geometries: Vec<Option<(Result<ShapeGeometry>, Vec<String>)>> = desc
+        .shapes
+        .par_iter()
+        .map(|sd| {
+            if matches!(sd.kind, ShapeKind::Instance { .. }) {
+                return None;
+            }
+            let mut w = Vec::new();
+            Some((shape_geometry(sd, shift, &mut w), w))
+        })
+        .collect();
+    for (sd, loaded) in desc.shapes.iter().zip(geometries.iter_mut()) {
         if let ShapeKind::Instance { group } = sd.kind {
             let inst = Instance::new(group as u32, shift * sd.to_world).ok_or_else(|| {
                 Error::scene(
@@ -234,7 +249,12 @@ pub fn build(desc: &SceneDescription) -> Result<Scene> {
             instances.push(inst);
             continue;
         }
-        let geometry = shape_geometry(sd, shift, &mut warnings)?;
+        // (every shape but an instance was loaded above)
+        let Some((geometry, w)) = loaded.take() else {
+            continue;
+        };
+        warnings.extend(w);
+        let geometry = geometry?;
         let shape_index = shapes.len() as u32;
         let material = materials
             .material(&sd.bsdf)
