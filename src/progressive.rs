@@ -726,11 +726,17 @@ impl Checkpoint {
         if bytes.len() < 16 {
             return Err(bad("wrong magic"));
         }
-        let (magic, h, pos) = Self::parse_magic_and_header(bytes, path)?;
+        match &bytes[..8] {
+            m if m == MAGIC || m == MAGIC_V4 => {}
+            m if &m[..7] == b"PNBRCKP" => return Err(bad("written by an older penumbra")),
+            _ => return Err(bad("wrong magic")),
+        }
+        // The checksum first: a corrupt file says so, whatever field the damage hit.
         let (body, tail) = bytes.split_at(bytes.len() - 8);
         if fnv1a(body, 0xcbf2_9ce4_8422_2325).to_le_bytes() != tail {
             return Err(bad("checksum mismatch"));
         }
+        let (magic, h, pos) = Self::parse_magic_and_header(bytes, path)?;
         if pos > body.len() {
             return Err(bad("truncated"));
         }
