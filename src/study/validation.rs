@@ -94,6 +94,16 @@ pub struct ValidationScene {
     /// shares its reference with the scene's own entry.
     #[serde(default)]
     pub integrator: Option<String>,
+    /// For the fast tests only: which checks they assert at `test_spp`, `"all"` (default),
+    /// `"mean"` (the image mean only, for heavy-tailed scenes whose per-pixel z-test and
+    /// slope cannot be resolved at the tests' sample counts: isolated fireflies in either
+    /// renderer) or `"none"` (rendered and reported, nothing asserted: a scene whose image
+    /// mean the tests' spp cannot estimate either), with the reason in `test_checks_why`.
+    /// The study (`validate`) runs all three checks at its own spp.
+    #[serde(default)]
+    pub test_checks: Option<String>,
+    #[serde(default)]
+    pub test_checks_why: Option<String>,
 }
 
 #[derive(Deserialize)]
@@ -126,6 +136,23 @@ pub fn parse_scene_list(text: &str) -> std::result::Result<Vec<ValidationScene>,
         }
         if s.status == Status::Pending && s.why.as_deref().is_none_or(str::is_empty) {
             return Err(format!("pending scene '{}' needs a `why`", s.name));
+        }
+        match s.test_checks.as_deref() {
+            None | Some("all") => {}
+            Some("mean" | "none")
+                if s.test_checks_why.as_deref().is_some_and(|w| !w.is_empty()) => {}
+            Some(c @ ("mean" | "none")) => {
+                return Err(format!(
+                    "scene '{}': test_checks = \"{c}\" needs a `test_checks_why`",
+                    s.name
+                ))
+            }
+            Some(other) => {
+                return Err(format!(
+                    "scene '{}': test_checks must be \"all\", \"mean\" or \"none\", not '{other}'",
+                    s.name
+                ))
+            }
         }
         if s.reference_spp == 0 || s.test_spp == 0 {
             return Err(format!(

@@ -37,6 +37,8 @@ EXTRA = [
     ("thindielectric-ior-1.9", '<bsdf type="thindielectric"><float name="int_ior" value="1.9"/></bsdf>'),
     ("roughdielectric-beckmann-0.05-tinted", '<bsdf type="roughdielectric"><float name="alpha" value="0.05"/><rgb name="specular_reflectance" value="0.5, 1, 1"/><rgb name="specular_transmittance" value="1, 0.3, 1"/></bsdf>'),
     ("twosided-plastic", '<bsdf type="twosided"><bsdf type="plastic"><rgb name="diffuse_reflectance" value="0.8, 0.3, 0.1"/></bsdf></bsdf>'),
+    # the glass of the torus scene (scenes/wild/ppglab-torus): nearly smooth, named IORs
+    ("roughdielectric-beckmann-0.01-acrylic", '<bsdf type="roughdielectric"><string name="int_ior" value="acrylic glass"/><string name="ext_ior" value="air"/><float name="alpha" value="0.01"/></bsdf>'),
 ]
 
 
@@ -63,7 +65,7 @@ def quadrature(bsdf, xml, ctx, si, wi, n):
     return total * (2 / n) * (np.pi / n)
 
 
-IORS = {"bk7": 1.5046, "air": 1.000277, "water": 1.3330, "diamond": 2.419}
+IORS = {"bk7": 1.5046, "air": 1.000277, "water": 1.3330, "diamond": 2.419, "acrylic glass": 1.49}
 
 
 def transmitted_eta(xml, wi_z):

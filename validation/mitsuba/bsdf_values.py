@@ -67,6 +67,9 @@ CASES = [
     ("bumpmap-roughconductor", '<bsdf type="bumpmap"><texture type="bitmap"><string name="filename" value="data/textures/grey8.png"/><boolean name="raw" value="true"/></texture><float name="scale" value="0.05"/><bsdf type="roughconductor"><float name="alpha" value="0.2"/></bsdf></bsdf>', "eval"),
     ("bumpmap-diffuse-twosided", '<bsdf type="bumpmap"><texture type="bitmap"><string name="filename" value="data/textures/ramp8.png"/><boolean name="raw" value="true"/></texture><float name="scale" value="0.2"/><bsdf type="twosided"><bsdf type="diffuse"/></bsdf></bsdf>', "eval"),
     ("roughplastic-beckmann-0.4-novisible", '<bsdf type="roughplastic"><float name="alpha" value="0.4"/><boolean name="sample_visible" value="false"/><rgb name="diffuse_reflectance" value="0.3, 0.6, 0.2"/></bsdf>', "eval"),
+    # the glass of the torus scene (scenes/wild/ppglab-torus): nearly smooth, named IORs;
+    # "narrow" adds pairs within ~0.01 rad of the reflected and refracted directions
+    ("roughdielectric-beckmann-0.01-acrylic-narrow", '<bsdf type="roughdielectric"><string name="int_ior" value="acrylic glass"/><string name="ext_ior" value="air"/><float name="alpha" value="0.01"/></bsdf>', "eval"),
 ]
 
 
@@ -123,6 +126,21 @@ def main():
                 wi[2] = abs(wi[2])
                 wo = np.array([-wi[0], -wi[1], wi[2]]) + 0.1 * rng.normal(size=3)
                 pairs.append((wi, wo / np.linalg.norm(wo)))
+            if "narrow" in name:  # around the peaks of a nearly smooth lobe
+                eta = 1.49 / 1.000277
+                for _ in range(30):
+                    wi = uniform_sphere(rng)
+                    if rng.uniform() < 0.5:
+                        wo = np.array([-wi[0], -wi[1], wi[2]])
+                    else:  # refraction through the interface z = 0
+                        e = eta if wi[2] > 0 else 1 / eta
+                        c = abs(wi[2])
+                        k = 1 - (1 - c * c) / (e * e)
+                        if k <= 0:
+                            continue
+                        wo = -wi / e + (c / e - np.sqrt(k)) * np.array([0, 0, np.sign(wi[2])])
+                    wo = wo / np.linalg.norm(wo) + 0.01 * rng.normal(size=3)
+                    pairs.append((wi, wo / np.linalg.norm(wo)))
             for z in [1e-3, 1e-2, 0.05]:
                 pairs.append((grazing(rng, z), uniform_sphere(rng) * [1, 1, 1]))
                 pairs.append((uniform_sphere(rng) * [1, 1, 1], grazing(rng, z)))
