@@ -572,11 +572,8 @@ fn write_image(o: &ImageOutput) -> Result<()> {
 }
 
 fn run_merge(args: MergeArgs) -> Result<()> {
-    let mut parts = Vec::with_capacity(args.parts.len());
-    for p in &args.parts {
-        parts.push((p.clone(), progressive::Checkpoint::read(p)?));
-    }
-    let merged = progressive::merge_parts(parts, args.spp)?;
+    // One part in memory at a time: the merge's memory does not grow with the parts.
+    let merged = progressive::merge_part_files(&args.parts, args.spp)?;
     write_image(&ImageOutput {
         output: &args.output,
         film: &merged.film(),

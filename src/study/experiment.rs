@@ -221,7 +221,14 @@ pub fn scene_variants(
             description: Scene::load_description(path, &d)?,
         });
     }
-    if variants.iter().any(|v| v.description != base) {
+    // (Warnings are not the scene: an override the file does not use is warned about.)
+    let same_scene = |a: &SceneDescription, b: &SceneDescription| {
+        let (mut a, mut b) = (a.clone(), b.clone());
+        a.warnings.clear();
+        b.warnings.clear();
+        a == b
+    };
+    if variants.iter().any(|v| !same_scene(&v.description, &base)) {
         return Ok((variants, Some(SweepMode::Define)));
     }
     if sweep.name == "sampler" {
