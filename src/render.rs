@@ -65,19 +65,23 @@ fn render_tile(
     scene: &Scene,
     integrator: &Integrator,
     settings: &RenderSettings,
-    x0: usize,
-    y0: usize,
+    x0: i64,
+    y0: i64,
 ) -> TileResult {
-    let w = TILE_SIZE.min(scene.width - x0);
-    let h = TILE_SIZE.min(scene.height - y0);
-    let mut tile = FilmTile::new(x0, y0, w, h, scene.filter);
+    // (the image, enlarged by the sampled border on every side)
+    let b = scene.sample_border as i64;
+    let (width, height) = (scene.width as i64, scene.height as i64);
+    let w = (TILE_SIZE as i64).min(width + b - x0) as usize;
+    let h = (TILE_SIZE as i64).min(height + b - y0) as usize;
+    let mut tile = FilmTile::new_at(x0, y0, w, h, scene.filter);
     let mut stats = PathStats::default();
     let mut nonfinite = 0;
     let inv_res = Vec2::new(1.0 / scene.width as f32, 1.0 / scene.height as f32);
     let sampler = settings.sampler.unwrap_or(scene.sampler);
-    for y in y0..y0 + h {
-        for x in x0..x0 + w {
+    for y in y0..y0 + h as i64 {
+        for x in x0..x0 + w as i64 {
             let (pixel, size) = scene.sample_key(x, y);
+            let inside = (0..width).contains(&x) && (0..height).contains(&y);
             for s in 0..settings.spp as u64 {
                 let mut sampler =
                     sampler.stream(settings.seed, pixel, size, settings.first_sample + s);
@@ -92,6 +96,11 @@ fn render_tile(
                 let l = integrator.li(scene, ray, &mut sampler, &mut stats);
                 if l.is_finite() {
                     tile.add_sample(pos, l);
+                    // The image's sample count is its own pixels' (spp per pixel); samples
+                    // of the border only lend their splats.
+                    if !inside {
+                        tile.samples -= 1;
+                    }
                 } else {
                     nonfinite += 1;
                 }
@@ -134,11 +143,14 @@ pub fn render(
         Integrator::Sppm(sppm) => return sppm.render(scene, settings, &pool, progress),
         _ => {}
     }
-    let tiles: Vec<(usize, usize)> = (0..scene.height)
+    // Tiles of the image, or of the image and the border Mitsuba's `sample_border` samples.
+    let b = scene.sample_border as i64;
+    let (width, height) = (scene.width as i64, scene.height as i64);
+    let tiles: Vec<(i64, i64)> = (-b..height + b)
         .step_by(TILE_SIZE)
-        .flat_map(|y| (0..scene.width).step_by(TILE_SIZE).map(move |x| (x, y)))
+        .flat_map(|y| (-b..width + b).step_by(TILE_SIZE).map(move |x| (x, y)))
         .collect();
-    let total = (scene.width * scene.height) as u64 * settings.spp as u64;
+    let total = ((width + 2 * b) * (height + 2 * b)) as u64 * settings.spp as u64;
     let done = AtomicU64::new(0);
     let start = Instant::now();
     let prepared;
@@ -157,7 +169,8 @@ pub fn render(
             .par_iter()
             .map(|&(x, y)| {
                 let r = render_tile(scene, integrator, settings, x, y);
-                let pixels = TILE_SIZE.min(scene.width - x) * TILE_SIZE.min(scene.height - y);
+                let pixels =
+                    (TILE_SIZE as i64).min(width + b - x) * (TILE_SIZE as i64).min(height + b - y);
                 let n = pixels as u64 * settings.spp as u64;
                 progress(done.fetch_add(n, Ordering::Relaxed) + n, total);
                 r

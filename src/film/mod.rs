@@ -145,11 +145,17 @@ impl FilmTile {
     /// A tile covering pixels [x0, x0 + width) × [y0, y0 + height), enlarged by the filter's
     /// border on every side.
     pub fn new(x0: usize, y0: usize, width: usize, height: usize, filter: Filter) -> Self {
+        Self::new_at(x0 as i64, y0 as i64, width, height, filter)
+    }
+
+    /// [`FilmTile::new`] at a corner that may lie outside the image (a tile of pixels sampled
+    /// beyond its edges, Mitsuba's `sample_border`; only what reaches the image is merged).
+    pub fn new_at(x0: i64, y0: i64, width: usize, height: usize, filter: Filter) -> Self {
         let b = filter.border();
         let (w, h) = (width + 2 * b, height + 2 * b);
         FilmTile {
-            x0: x0 as i64 - b as i64,
-            y0: y0 as i64 - b as i64,
+            x0: x0 - b as i64,
+            y0: y0 - b as i64,
             width: w,
             height: h,
             filter,

@@ -559,7 +559,7 @@ impl Sppm {
                     .for_each(|(y, ((vp_row, ld_row), st))| {
                         *st = PathStats::default();
                         for (x, (vp, l)) in vp_row.iter_mut().zip(ld_row).enumerate() {
-                            let (pixel, size) = scene.sample_key(x, y);
+                            let (pixel, size) = scene.sample_key(x as i64, y as i64);
                             let mut s = sampler.stream(settings.seed, pixel, size, iteration);
                             let pos = Vec2::new(x as f32, y as f32) + s.next_2d();
                             *l = self.camera_path(scene, pos, &mut s, st, vp);

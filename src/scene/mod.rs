@@ -39,6 +39,10 @@ pub struct Scene {
     /// same pixels of the whole film.
     pub film_origin: (u32, u32),
     pub film_size: (u32, u32),
+    /// Mitsuba's `sample_border`: pixels this far outside the image are sampled too, so that
+    /// the pixels at the edges receive their filter's whole footprint (0 without it; the
+    /// filter's border with it).
+    pub sample_border: usize,
     pub filter: Filter,
     /// The sampler's `sample_count` after its rounding (the CLI's `--spp` overrides it).
     pub sample_count: u32,
@@ -69,12 +73,21 @@ pub struct Scene {
 
 impl Scene {
     /// The film pixel of image pixel (x, y), and the film's size: what a pixel's sample
-    /// stream is keyed by ([`crate::sampler::Sampler::stream`]).
+    /// stream is keyed by ([`crate::sampler::Sampler::stream`]). With `sample_border` the
+    /// pixels sampled outside the image (x or y down to −border) are keyed in the film
+    /// enlarged by the border on every side.
     #[inline]
-    pub fn sample_key(&self, x: usize, y: usize) -> ((u32, u32), (u32, u32)) {
+    pub fn sample_key(&self, x: i64, y: i64) -> ((u32, u32), (u32, u32)) {
+        let b = self.sample_border as i64;
         (
-            (self.film_origin.0 + x as u32, self.film_origin.1 + y as u32),
-            self.film_size,
+            (
+                (self.film_origin.0 as i64 + x + b) as u32,
+                (self.film_origin.1 as i64 + y + b) as u32,
+            ),
+            (
+                self.film_size.0 + 2 * b as u32,
+                self.film_size.1 + 2 * b as u32,
+            ),
         )
     }
 

@@ -377,6 +377,7 @@ pub fn build(desc: &SceneDescription) -> Result<Scene> {
         height,
         film_origin: s.film.crop_offset,
         film_size: (s.film.width, s.film.height),
+        sample_border: 0,
         filter: match s.film.rfilter {
             FilterDesc::Box => Filter::Box,
             FilterDesc::Tent { radius } => Filter::Tent { radius },
@@ -392,6 +393,18 @@ pub fn build(desc: &SceneDescription) -> Result<Scene> {
         media,
         camera_medium: s.medium.map(|i| i as u32),
     };
+    if s.film.sample_border {
+        // Camera-path integrators sample the border; light tracing splats wherever its paths
+        // land and SPPM's visible points are the image's own pixels.
+        match &desc.integrator {
+            IntegratorDesc::Sppm { .. } => scene.warnings.push(
+                "sample_border is ignored by sppm: its visible points are the image's pixels"
+                    .into(),
+            ),
+            IntegratorDesc::ParticleTracer { .. } => {}
+            _ => scene.sample_border = scene.filter.border(),
+        }
+    }
     if let IntegratorDesc::Radiosity(params) = &desc.integrator {
         scene.integrator = Integrator::Radiosity(
             crate::integrator::radiosity::RadiosityIntegrator::new(&scene, params.clone())?,

@@ -45,6 +45,10 @@ pub struct FilmDesc {
     /// Mitsuba (float16 by default), penumbra writes float32 unless the file asks for float16:
     /// its images are references and inputs to statistical comparisons.
     pub half: bool,
+    /// `sample_border`: also sample the pixels within the filter's reach outside the crop
+    /// window, so that the edge pixels receive samples from all around (Mitsuba's "high
+    /// quality edges"; default false).
+    pub sample_border: bool,
 }
 
 impl FilmDesc {
@@ -57,6 +61,7 @@ impl FilmDesc {
             crop_size: (768, 576),
             rfilter: FilterDesc::Gaussian { stddev: 0.5 },
             half: false,
+            sample_border: false,
         }
     }
 }
@@ -335,12 +340,6 @@ pub(super) fn film_desc(cx: &Ctx, o: &Object) -> Result<FilmDesc> {
             }
         },
     };
-    if sample_border {
-        cx.warn(format!(
-            "{}: sample_border is not implemented: only the crop window's own pixels are sampled (Mitsuba's default), so pixels within the filter's reach of the edges differ from Mitsuba's",
-            o.location
-        ));
-    }
     for (name, v) in [("width", width), ("height", height)] {
         if v <= 0 || v > MAX_RESOLUTION as i64 {
             return Err(Error::scene(
@@ -396,6 +395,7 @@ pub(super) fn film_desc(cx: &Ctx, o: &Object) -> Result<FilmDesc> {
         crop_size: (crop_width as u32, crop_height as u32),
         rfilter,
         half,
+        sample_border,
     })
 }
 
