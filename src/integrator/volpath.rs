@@ -30,7 +30,7 @@ use crate::emitter::DirectionSample;
 use crate::geometry::Ray;
 use crate::integrator::{emission_at, emitter_pdf_at, PathStats};
 use crate::material::ShadingBsdf;
-use crate::medium::{exp3, mean3, safe_div3, Medium, MediumInteraction};
+use crate::medium::{transmittance, mean3, safe_div3, Medium, MediumInteraction};
 use crate::sampler::SampleStream;
 use crate::sampling::mis_power;
 use crate::scene::Scene;
@@ -171,7 +171,7 @@ pub(crate) fn trace_shadow<W: ShadowWeights>(
                 scene, med, &mut ray, remaining, &mut hit, channel, sampler, stats,
             );
             let t = mi.segment(remaining.min(si_t));
-            let tr = exp3(-t * mi.combined_extinction);
+            let tr = transmittance(t, mi.combined_extinction);
             let pdf = if si_t < mi.t || mi.t > remaining {
                 tr
             } else {

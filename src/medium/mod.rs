@@ -151,7 +151,7 @@ impl Medium {
     #[inline]
     pub fn transmittance_eval_pdf(mi: &MediumInteraction, si_t: f32) -> (Vec3, Vec3) {
         let t = mi.segment(si_t);
-        let tr = exp3(-t * mi.combined_extinction);
+        let tr = transmittance(t, mi.combined_extinction);
         let pdf = if si_t < mi.t {
             tr
         } else {
@@ -161,12 +161,14 @@ impl Medium {
     }
 }
 
-/// Component-wise exp, with exp(−∞ · 0) = exp(NaN) treated as 1 (an empty segment through a
-/// zero majorant transmits everything).
+/// The transmittance exp(−t σ) of a segment of length `t` per channel of extinction `sigma`,
+/// with a zero extinction transmitting everything even over an infinite segment (where
+/// t · σ is ∞ · 0 = NaN). Any other NaN (a NaN extinction or length) stays NaN, so the
+/// sample is dropped and counted as non-finite, never turned into a transmittance.
 #[inline]
-pub fn exp3(v: Vec3) -> Vec3 {
-    let e = |x: f32| if x.is_nan() { 1.0 } else { x.exp() };
-    Vec3::new(e(v.x), e(v.y), e(v.z))
+pub fn transmittance(t: f32, sigma: Vec3) -> Vec3 {
+    let e = |s: f32| if s == 0.0 { 1.0 } else { (-t * s).exp() };
+    Vec3::new(e(sigma.x), e(sigma.y), e(sigma.z))
 }
 
 /// The mean of the three channels.
@@ -180,4 +182,22 @@ pub fn mean3(v: Vec3) -> f32 {
 pub fn safe_div3(a: Vec3, b: Vec3) -> Vec3 {
     let d = |a: f32, b: f32| if b != 0.0 { a / b } else { 0.0 };
     Vec3::new(d(a.x, b.x), d(a.y, b.y), d(a.z, b.z))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// exp(−t σ) per channel; a zero extinction transmits everything, even over an infinite
+    /// segment; a NaN extinction or length is NaN (dropped as a non-finite sample), never a
+    /// transmittance of 1.
+    #[test]
+    fn transmittance_never_turns_nan_into_one() {
+        let tr = transmittance(2.0, Vec3::new(0.5, 0.0, 1e30));
+        assert_eq!(tr, Vec3::new((-1.0f32).exp(), 1.0, 0.0));
+        assert_eq!(transmittance(f32::INFINITY, Vec3::ZERO), Vec3::ONE);
+        let nan = transmittance(1.0, Vec3::new(f32::NAN, 1.0, f32::NAN));
+        assert!(nan.x.is_nan() && nan.z.is_nan() && nan.y == (-1.0f32).exp());
+        assert!(transmittance(f32::NAN, Vec3::ONE).is_nan());
+    }
 }

@@ -339,6 +339,17 @@ pub fn build(desc: &SceneDescription) -> Result<Scene> {
         warnings.push("the scene has no emitter: the image will be black".into());
     }
     let bounding_sphere = bounding_sphere(&accel);
+    // Emission is held in f32: a radiance (or its product with a scale) beyond its range is
+    // infinite there, and every sample it reaches would be dropped as non-finite.
+    for (i, e) in emitters.iter().enumerate() {
+        if !e.power(&shapes, bounding_sphere.1 as f64).is_finite() {
+            return Err(Error::Invalid(format!(
+                "emitter {} of the scene ({}): its emission overflows the single-precision range (3.4e38) that penumbra renders in",
+                i + 1,
+                e.plugin_name()
+            )));
+        }
+    }
     let media = desc
         .media
         .iter()

@@ -265,6 +265,16 @@ impl<'a> Props<'a> {
                 if let Some(w) = warning {
                     self.warnings.push(format!("{loc}: {w}"));
                 }
+                // (the conversion stores what f32 cannot hold as ±f32::MAX, with a warning)
+                if !(rgb.abs().max_element() < f32::MAX as f64) {
+                    return Err(Error::scene(
+                        loc,
+                        format!(
+                            "the spectrum of '{name}' of {} is beyond the single-precision range (3.4e38) that penumbra renders in",
+                            describe(self.obj)
+                        ),
+                    ));
+                }
                 Ok(Some(rgb))
             }
             Some((v, loc)) => Err(self.wrong_type(name, v, loc, "an rgb, float or spectrum")),

@@ -542,7 +542,13 @@ impl Elem<'_, '_> {
     /// Parses a finite float with Mitsuba's syntax.
     fn float(&self, text: &str) -> Result<f64> {
         match parse_float(text) {
-            Some(v) if v.is_finite() => Ok(v),
+            // penumbra renders in f32: a value beyond its range would become infinite there.
+            Some(v) if v.is_finite() && v.abs() <= f32::MAX as f64 => Ok(v),
+            Some(v) if v.is_finite() => Err(self.error(format!(
+                "floating point value \"{}\" in {} exceeds the single-precision range (3.4e38) that penumbra renders in",
+                shorten(text),
+                self.desc
+            ))),
             Some(_) => Err(self.error(format!(
                 "non-finite floating point value \"{}\" in {} (penumbra refuses infinities and NaNs)",
                 shorten(text),
@@ -1649,9 +1655,9 @@ impl Loader {
             }
             // Each operation applies after the previous ones, as in Mitsuba.
             matrix = m * matrix;
-            if !matrix.is_finite() {
+            if !matrix.is_finite() || matrix.abs().to_cols_array().iter().any(|x| *x > f32::MAX as f64) {
                 return Err(op.error(format!(
-                    "{} makes the transform {} non-finite",
+                    "{} makes the transform {} non-finite or beyond single precision (3.4e38)",
                     op.desc, elem.desc
                 )));
             }
