@@ -30,7 +30,7 @@ use crate::emitter::DirectionSample;
 use crate::geometry::Ray;
 use crate::integrator::{emission_at, emitter_pdf_at, PathStats};
 use crate::material::ShadingBsdf;
-use crate::medium::{transmittance, mean3, safe_div3, Medium, MediumInteraction};
+use crate::medium::{mean3, safe_div3, transmittance, Medium, MediumInteraction};
 use crate::sampler::SampleStream;
 use crate::sampling::mis_power;
 use crate::scene::Scene;

@@ -266,7 +266,7 @@ impl<'a> Props<'a> {
                     self.warnings.push(format!("{loc}: {w}"));
                 }
                 // (the conversion stores what f32 cannot hold as ±f32::MAX, with a warning)
-                if !(rgb.abs().max_element() < f32::MAX as f64) {
+                if rgb.is_nan() || rgb.abs().max_element() >= f32::MAX as f64 {
                     return Err(Error::scene(
                         loc,
                         format!(

@@ -185,7 +185,10 @@ pub(super) fn sensor_desc(cx: &Ctx, o: &Arc<Object>) -> Result<SensorDesc> {
     // moves, so the times only have to be in order, as Mitsuba requires.
     let shutter_open = p.float("shutter_open", 0.0)?;
     let shutter_close = p.float("shutter_close", 0.0)?;
-    if !(shutter_close >= shutter_open) {
+    if shutter_close
+        .partial_cmp(&shutter_open)
+        .is_none_or(|o| o.is_lt())
+    {
         return Err(Error::scene(
             &o.location,
             format!("shutter_open ({shutter_open}) must not be later than shutter_close ({shutter_close})"),

@@ -298,7 +298,7 @@ pub(super) fn texture_desc(cx: &Ctx, o: &Object, role: ColorRole) -> Result<Text
             // spectrum is 0); in RGB the value is the value.
             let lo = p.float("wavelength_min", 360.0)?;
             let hi = p.float("wavelength_max", 830.0)?;
-            if !(lo < hi) {
+            if lo.partial_cmp(&hi).is_none_or(|o| o.is_ge()) {
                 return Err(Error::scene(
                     &o.location,
                     format!(

@@ -12,7 +12,9 @@
 //!   the scene's directory and the working directory); an included file needs its own
 //!   `version`; a `<scene>` root contributes its objects (its properties and references are
 //!   dropped, as in Mitsuba), another root that one object; at most [`MAX_INCLUDE_DEPTH`]
-//!   files deep, include cycles rejected,
+//!   files deep, include cycles rejected, at most [`MAX_INCLUDED_FILES`] included files
+//!   and [`MAX_PARSED_BYTES`] bytes of XML parsed in all (a file counts each time it is
+//!   included),
 //! - `<default name="..." value="..."/>` and `$name` substitution in every attribute value
 //!   (Mitsuba's: longest names first, anywhere in the value, `\$` for a literal `$`), with
 //!   command-line overrides taking precedence over the file's defaults; an override the scene
@@ -90,6 +92,18 @@ const MAX_NESTING_DEPTH: usize = 64;
 /// Maximum number of files in a chain of `<include>`s, the main file included: Mitsuba's
 /// `ParserConfig::max_include_depth`.
 const MAX_INCLUDE_DEPTH: usize = 15;
+
+/// Included files parsed while loading one scene, counting a file each time it is included:
+/// with [`MAX_INCLUDE_DEPTH`] alone, a chain of files that each include the next twice
+/// would be parsed 2^14 times, and one whose files include the next eight times 8^14 times.
+/// (Mitsuba has no such limit; no real scene includes files thousands of times.)
+const MAX_INCLUDED_FILES: usize = 1 << 13;
+
+/// Bytes of XML parsed while loading one scene, the main file's and every included file's
+/// (each time it is included): 4 times the largest file read, [`MAX_SCENE_FILE_BYTES`].
+///
+/// [`MAX_SCENE_FILE_BYTES`]: crate::io::MAX_SCENE_FILE_BYTES
+const MAX_PARSED_BYTES: u64 = 4 * crate::io::MAX_SCENE_FILE_BYTES;
 
 /// Longest chain of objects reached through `<ref>`s while resolving one object (nested
 /// objects count too): bounds the resolver's recursion on hostile input.
@@ -228,6 +242,7 @@ fn load_bytes(bytes: &[u8], path: &Path, overrides: &[(String, String)]) -> Resu
     let text = markup::to_utf8(bytes);
     let mut file = SourceFile::new(path, &text);
     let mut loader = Loader::new(overrides, FileResolver::for_scene(&file.dir));
+    loader.parsed_bytes = bytes.len() as u64;
     let doc = parse_document(&file)?;
     loader.include_stack.push(IncludeFrame {
         key: include_key(path),
@@ -304,6 +319,10 @@ struct Loader {
     scopes: Vec<FileScope>,
     /// The chain of files being included, outermost first.
     include_stack: Vec<IncludeFrame>,
+    /// Included files parsed so far (see [`MAX_INCLUDED_FILES`]).
+    included_files: usize,
+    /// Bytes of XML parsed so far, the main file's included (see [`MAX_PARSED_BYTES`]).
+    parsed_bytes: u64,
     /// Bytes that `$name` substitution may still produce.
     substitution_budget: usize,
     /// Bytes that `$name` substitution may still scan.
@@ -828,6 +847,8 @@ impl Loader {
                 root_ids: HashMap::new(),
             }],
             include_stack: Vec::new(),
+            included_files: 0,
+            parsed_bytes: 0,
             substitution_budget: SUBSTITUTION_BUDGET,
             substitution_work: SUBSTITUTION_WORK,
             resolver,
@@ -1524,6 +1545,14 @@ impl Loader {
                 .collect();
             return Err(elem.error(format!("cyclic include: {}", chain.join(" -> "))));
         }
+        if self.included_files >= MAX_INCLUDED_FILES {
+            return Err(elem.error(format!(
+                "{}: more than {MAX_INCLUDED_FILES} included files parsed for one scene (a \
+                 file counts each time it is included)",
+                elem.desc
+            )));
+        }
+        self.included_files += 1;
         let bytes =
             crate::io::read_file_limited(&path, crate::io::MAX_SCENE_FILE_BYTES).map_err(|e| {
                 elem.error(format!(
@@ -1531,6 +1560,14 @@ impl Loader {
                     shown(&path)
                 ))
             })?;
+        self.parsed_bytes += bytes.len() as u64;
+        if self.parsed_bytes > MAX_PARSED_BYTES {
+            return Err(elem.error(format!(
+                "{}: more than {MAX_PARSED_BYTES} bytes of XML parsed for one scene (the \
+                 scene file and its included files, each time it is included)",
+                elem.desc
+            )));
+        }
         let text = markup::to_utf8(&bytes);
         let mut included = SourceFile::new(&path, &text);
         let doc = parse_document(&included)?;
@@ -1655,7 +1692,13 @@ impl Loader {
             }
             // Each operation applies after the previous ones, as in Mitsuba.
             matrix = m * matrix;
-            if !matrix.is_finite() || matrix.abs().to_cols_array().iter().any(|x| *x > f32::MAX as f64) {
+            if !matrix.is_finite()
+                || matrix
+                    .abs()
+                    .to_cols_array()
+                    .iter()
+                    .any(|x| *x > f32::MAX as f64)
+            {
                 return Err(op.error(format!(
                     "{} makes the transform {} non-finite or beyond single precision (3.4e38)",
                     op.desc, elem.desc

@@ -2625,7 +2625,7 @@ fn random_markup_never_panics() {
             }
             out.push('"');
         }
-        if depth < 3 && next() % 2 == 0 {
+        if depth < 3 && next().is_multiple_of(2) {
             out.push('>');
             for _ in 0..next() % 4 {
                 element(out, depth + 1, next);
