@@ -280,22 +280,19 @@ impl SpectrumValue {
             }
             let Some((wl, rest)) = scan_number(line) else {
                 return Err(format!(
-                    "could not read a wavelength in line {line_number} of the spectrum file: \"{}\"",
-                    shorten_bytes(line)
+                    "could not read a wavelength in line {line_number} of the spectrum file \
+                     (each line holds a wavelength in nm and a value)"
                 ));
             };
             let Some((value, _)) = scan_number(rest) else {
                 return Err(format!(
                     "could not read a value after the wavelength in line {line_number} of the \
-                     spectrum file: \"{}\"",
-                    shorten_bytes(line)
+                     spectrum file (each line holds a wavelength in nm and a value)"
                 ));
             };
             if !wl.is_finite() || !value.is_finite() {
                 return Err(format!(
-                    "line {line_number} of the spectrum file holds a number that is not finite: \
-                     \"{}\"",
-                    shorten_bytes(line)
+                    "line {line_number} of the spectrum file holds a number that is not finite"
                 ));
             }
             wavelengths.push(wl);
@@ -551,12 +548,6 @@ fn shorten(text: &str) -> String {
         Some((cut, _)) => format!("{}…", &text[..cut]),
         None => text.to_string(),
     }
-}
-
-/// [`shorten`] for a line of a file: lossy UTF-8, line end dropped.
-fn shorten_bytes(line: &[u8]) -> String {
-    let text = String::from_utf8_lossy(line);
-    shorten(text.trim_end_matches(['\n', '\r']))
 }
 
 #[cfg(test)]
@@ -873,6 +864,21 @@ mod tests {
         let split = format!("400 0.5{}7 8\n500 0.6\n", " ".repeat(1016));
         let e = SpectrumValue::from_spd(split.as_bytes()).unwrap_err();
         assert!(e.contains("strictly increasing"), "{e}");
+    }
+
+    /// A spectrum file that is not one (a `filename` naming any file the user can read) is
+    /// refused without any of its contents in the message, which may be shown or logged.
+    #[test]
+    fn spd_errors_never_quote_the_file() {
+        for bytes in [
+            b"root:secret-hash:19000:0:99999:7:::\n".as_slice(),
+            b"400 secret\n500 0.6\n",
+            b"400 0.5\n500 nan-secret\n",
+            b"400 inf\nsecret\n",
+        ] {
+            let e = SpectrumValue::from_spd(bytes).unwrap_err();
+            assert!(!e.contains("secret") && !e.contains("root"), "{e}");
+        }
     }
 
     #[test]

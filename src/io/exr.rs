@@ -41,7 +41,8 @@ fn channel(name: &str, data: &[[f32; 3]], c: usize) -> AnyChannel<FlatSamples> {
     AnyChannel::new(name, FlatSamples::F32(data.iter().map(|p| p[c]).collect()))
 }
 
-/// Writes `image` to `path` atomically: into a temporary file next to it, then renamed.
+/// Writes `image` to `path` atomically ([`crate::io::atomic`]): into a temporary file of a
+/// unique name next to it, synced, then renamed over it.
 pub fn write(path: &Path, image: &RgbImage, attributes: &[(&str, Attribute)]) -> Result<()> {
     let n = image.width * image.height;
     if image.rgb.len() != n || image.variance.as_ref().is_some_and(|v| v.len() != n) {
@@ -111,20 +112,14 @@ fn write_any(
         Encoding::FAST_LOSSLESS,
         AnyChannels::sort(SmallVec::from_vec(channels)),
     );
-    let file_name = path
-        .file_name()
-        .ok_or_else(|| out_err("not a file path".into()))?
-        .to_string_lossy()
-        .into_owned();
-    let tmp = path.with_file_name(format!(".{file_name}.tmp"));
-    Image::from_layer(layer)
-        .write()
-        .to_file(&tmp)
-        .map_err(|e| out_err(e.to_string()))?;
-    std::fs::rename(&tmp, path).map_err(|e| {
-        let _ = std::fs::remove_file(&tmp);
-        out_err(e.to_string())
+    let image = Image::from_layer(layer);
+    crate::io::atomic::write_with(path, |file| {
+        image
+            .write()
+            .to_buffered(file)
+            .map_err(|e| std::io::Error::other(e.to_string()))
     })
+    .map_err(|e| out_err(e.to_string()))
 }
 
 fn attribute_text(v: &AttributeValue) -> Option<String> {
@@ -145,7 +140,7 @@ pub fn read(path: &Path) -> Result<RgbImage> {
         message,
     };
     let image = read_flat(path)?;
-    let layer = &image.layer_data[0];
+    let layer = &image.layer_data;
     let (width, height) = (layer.size.width(), layer.size.height());
     let get = |name: &str| -> Option<Vec<f32>> {
         layer
@@ -155,14 +150,23 @@ pub fn read(path: &Path) -> Result<RgbImage> {
             .find(|c| c.name.to_string() == name)
             .map(|c| c.sample_data.values_as_f32().collect())
     };
-    let triple = |names: [&str; 3]| -> Option<Vec<[f32; 3]>> {
+    let triple = |names: [&str; 3]| -> Result<Option<Vec<[f32; 3]>>> {
         let [r, g, b] = names.map(get);
-        let (r, g, b) = (r?, g?, b?);
-        Some((0..width * height).map(|i| [r[i], g[i], b[i]]).collect())
+        let (Some(r), Some(g), Some(b)) = (r, g, b) else {
+            return Ok(None);
+        };
+        if [&r, &g, &b].iter().any(|c| c.len() != width * height) {
+            return Err(in_err(
+                "corrupt OpenEXR: a channel's size differs from the image's".into(),
+            ));
+        }
+        Ok(Some(
+            (0..width * height).map(|i| [r[i], g[i], b[i]]).collect(),
+        ))
     };
     let rgb =
-        triple(["R", "G", "B"]).ok_or_else(|| in_err("EXR has no R, G, B channels".into()))?;
-    let variance = triple(["variance.R", "variance.G", "variance.B"]);
+        triple(["R", "G", "B"])?.ok_or_else(|| in_err("EXR has no R, G, B channels".into()))?;
+    let variance = triple(["variance.R", "variance.G", "variance.B"])?;
     let mut attributes = BTreeMap::new();
     for (k, v) in layer
         .attributes
@@ -183,21 +187,102 @@ pub fn read(path: &Path) -> Result<RgbImage> {
     })
 }
 
-/// Every layer of an EXR file as flat samples; an error unless it has at least one.
-fn read_flat(path: &Path) -> Result<FlatImage> {
+/// Decoded bytes always allowed whatever the file's size (as for texture images).
+const EXPANSION_SLACK: u64 = 16 << 20;
+
+/// The checks made on the header before any pixel is allocated: a flat (not deep) first part
+/// of at most [`MAX_PIXELS`](crate::io::image::MAX_PIXELS) pixels, whose decoded samples a
+/// file of `file_len` bytes can hold (at most
+/// [`MAX_EXPANSION`](crate::io::image::MAX_EXPANSION) decoded bytes per file byte), and no
+/// sub-sampled channel (their sample counts differ from the pixel count).
+fn check_header(header: &::exr::meta::header::Header, file_len: u64) -> Result<(), String> {
+    use crate::io::image::{MAX_EXPANSION, MAX_PIXELS};
+    if header.deep {
+        return Err("deep OpenEXR images are not supported".into());
+    }
+    if header
+        .channels
+        .list
+        .iter()
+        .any(|c| c.sampling != Vec2(1, 1))
+    {
+        return Err("sub-sampled OpenEXR channels are not supported".into());
+    }
+    let (w, h) = (header.layer_size.0 as u64, header.layer_size.1 as u64);
+    if w == 0 || h == 0 {
+        return Err(format!("zero-sized image ({w} x {h})"));
+    }
+    let pixels = w.saturating_mul(h);
+    if pixels > MAX_PIXELS {
+        return Err(format!(
+            "image of {w} x {h} pixels exceeds the limit of {MAX_PIXELS} pixels"
+        ));
+    }
+    let bytes_per_pixel: u64 = header
+        .channels
+        .list
+        .iter()
+        .map(|c| c.sample_type.bytes_per_sample() as u64)
+        .sum();
+    let decoded = pixels.saturating_mul(bytes_per_pixel);
+    if decoded
+        > file_len
+            .saturating_mul(MAX_EXPANSION)
+            .saturating_add(EXPANSION_SLACK)
+    {
+        return Err(format!(
+            "header claims {w} x {h} pixels, more than a {file_len}-byte file can hold"
+        ));
+    }
+    Ok(())
+}
+
+/// The first part of an EXR file as flat samples. The file is opened as every input is
+/// ([`crate::io::open_regular`]: a regular file of at most
+/// [`MAX_IMAGE_FILE_BYTES`](crate::io::image::MAX_IMAGE_FILE_BYTES)), its header checked
+/// ([`check_header`]) before any pixel is allocated, and a panic inside the decoder on a
+/// malformed file becomes an error.
+fn read_flat(path: &Path) -> Result<Image<Layer<AnyChannels<FlatSamples>>>> {
+    use std::io::Seek;
     let in_err = |message: String| Error::Image {
         path: path.to_path_buf(),
         message,
     };
-    if let Err(cause) = std::fs::metadata(path) {
-        return Err(Error::Io {
+    let (file, file_len) = crate::io::open_regular(path, crate::io::image::MAX_IMAGE_FILE_BYTES)
+        .map_err(|cause| Error::Io {
             path: path.to_path_buf(),
             cause,
-        });
-    }
-    let image = read_all_flat_layers_from_file(path).map_err(|e| in_err(e.to_string()))?;
-    if image.layer_data.is_empty() {
-        return Err(in_err("EXR has no layer".into()));
+        })?;
+    let mut reader = std::io::BufReader::new(file);
+    let meta = ::exr::meta::MetaData::read_from_buffered(&mut reader, false)
+        .map_err(|e| in_err(format!("cannot read OpenEXR header: {e}")))?;
+    let header = meta
+        .headers
+        .first()
+        .ok_or_else(|| in_err("EXR has no layer".into()))?;
+    check_header(header, file_len).map_err(in_err)?;
+    let size = header.layer_size;
+    reader.rewind().map_err(|cause| Error::Io {
+        path: path.to_path_buf(),
+        cause,
+    })?;
+    // The decoder runs on this thread (non_parallel), so that a panic can be caught here.
+    let decoded = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| {
+        ::exr::prelude::read()
+            .no_deep_data()
+            .largest_resolution_level()
+            .all_channels()
+            .first_valid_layer()
+            .all_attributes()
+            .non_parallel()
+            .from_buffered(reader)
+    }))
+    .map_err(|_| in_err("the OpenEXR decoder failed on this file (corrupt?)".into()))?;
+    let image = decoded.map_err(|e| in_err(e.to_string()))?;
+    if image.layer_data.size != size {
+        return Err(in_err(
+            "corrupt OpenEXR: layer differs from its header".into(),
+        ));
     }
     Ok(image)
 }
@@ -209,7 +294,7 @@ pub type NamedChannels = Vec<(String, Vec<f32>)>;
 /// with the image's size.
 pub fn read_channels(path: &Path) -> Result<((usize, usize), NamedChannels)> {
     let image = read_flat(path)?;
-    let layer = &image.layer_data[0];
+    let layer = &image.layer_data;
     let channels = layer
         .channel_data
         .list
@@ -250,7 +335,11 @@ mod tests {
         assert_eq!(back.rgb, img.rgb);
         assert_eq!(back.variance, img.variance);
         assert_eq!(back.attributes.get("spp").map(String::as_str), Some("64"));
-        assert!(!dir.join(".rt.exr.tmp").exists());
+        let names: Vec<_> = std::fs::read_dir(&dir)
+            .unwrap()
+            .map(|e| e.unwrap().file_name())
+            .collect();
+        assert_eq!(names, ["rt.exr"], "no temporary file is left");
         std::fs::remove_dir_all(&dir).ok();
     }
 }

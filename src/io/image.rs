@@ -1000,14 +1000,22 @@ mod tests {
         let exr = std::fs::read(repo("scenes/textures/sky-64x32.exr")).unwrap();
         assert!(hdr.starts_with(b"#?RGBE\n"));
         let (a, b) = (decode(&hdr).unwrap(), decode(&exr).unwrap());
-        assert_eq!((a.format, a.layout, a.channels), (FileFormat::Rgbe, Layout::Rgb, 3));
+        assert_eq!(
+            (a.format, a.layout, a.channels),
+            (FileFormat::Rgbe, Layout::Rgb, 3)
+        );
         assert_eq!((a.width, a.height), (b.width, b.height));
         for p in 0..a.width * a.height {
-            let m = (0..3).map(|c| b.samples.value(3 * p + c)).fold(0.0f32, f32::max);
+            let m = (0..3)
+                .map(|c| b.samples.value(3 * p + c))
+                .fold(0.0f32, f32::max);
             for c in 0..3 {
                 let (x, y) = (a.samples.value(3 * p + c), b.samples.value(3 * p + c));
                 // RGBE truncates each channel to a step of 2^(e-8) with 2^e > max channel
-                assert!(y - x >= 0.0 && y - x <= m / 128.0, "texel {p} channel {c}: {x} vs {y}");
+                assert!(
+                    y - x >= 0.0 && y - x <= m / 128.0,
+                    "texel {p} channel {c}: {x} vs {y}"
+                );
             }
         }
         let radiance = [b"#?RADIANCE".as_slice(), &hdr[6..]].concat();

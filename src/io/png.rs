@@ -18,7 +18,8 @@ pub fn linear_to_srgb(x: f32) -> f32 {
     }
 }
 
-/// Writes a preview PNG of a linear RGB image (`exposure` multiplies before clamping).
+/// Writes a preview PNG of a linear RGB image (`exposure` multiplies before clamping),
+/// atomically.
 pub fn write_preview(
     path: &Path,
     width: usize,
@@ -36,8 +37,14 @@ pub fn write_preview(
     };
     let img = image::RgbImage::from_raw(width as u32, height as u32, bytes)
         .ok_or_else(|| err("pixel count does not match the resolution".into()))?;
-    img.save_with_format(path, image::ImageFormat::Png)
-        .map_err(|e| err(e.to_string()))
+    // Atomically ([`crate::io::atomic`]), like the EXR it previews.
+    crate::io::atomic::write_with(path, |file| {
+        let mut w = std::io::BufWriter::new(file);
+        img.write_to(&mut w, image::ImageFormat::Png)
+            .map_err(|e| std::io::Error::other(e.to_string()))?;
+        std::io::Write::flush(&mut w)
+    })
+    .map_err(|e| err(e.to_string()))
 }
 
 #[cfg(test)]

@@ -40,9 +40,12 @@
 //! - `shape_index` must be below the count at the end of the file (Mitsuba's check lets
 //!   `shape_index == count` through; it then fails reading version 4 and takes the count
 //!   for an offset in version 3).
-//! - Hostile input: never panics, no recursion. Nothing is allocated from a header count:
-//!   decompressed bytes are collected as they arrive, so memory is bounded by what the zlib
-//!   stream really holds (deflate expands at most ~1032:1), and a short stream is an error.
+//! - Hostile input: never panics, no recursion. Before anything is inflated, the bytes the
+//!   counts and flags ask for are checked against [`MAX_SHAPE_BYTES`] and against what the
+//!   compressed bytes can hold ([`MAX_ZLIB_EXPANSION`], deflate's 1032:1), so a
+//!   decompression bomb is refused at once; then exactly those bytes are inflated (never
+//!   more), collected as they arrive (nothing is allocated from a header count), and a short
+//!   stream is an error.
 
 use super::mesh::MeshData;
 use std::io::Read;
@@ -54,6 +57,13 @@ const HAS_COLORS: u32 = 0x0008;
 const DOUBLE_PRECISION: u32 = 0x2000;
 /// Longest shape name read (a guard against a name that never ends).
 const MAX_NAME_BYTES: usize = 1 << 16;
+/// Largest decompressed shape: as large as the largest (uncompressed) mesh file read.
+pub const MAX_SHAPE_BYTES: u64 = super::MAX_MESH_FILE_BYTES;
+/// Most bytes one compressed byte can inflate to: deflate's maximum ratio (a 258-byte match
+/// in two bits) is 1032:1.
+pub const MAX_ZLIB_EXPANSION: u64 = 1032;
+/// Decompressed bytes always allowed whatever the compressed length (tiny meshes).
+const EXPANSION_SLACK: u64 = 1 << 16;
 
 /// One shape of a `.serialized` file.
 #[derive(Clone, Debug, Default, PartialEq)]
@@ -131,6 +141,8 @@ pub fn read_serialized_shape(bytes: &[u8], shape_index: usize) -> Result<Seriali
     }
     let (nv, nf) = (vertex_count as usize, face_count as usize);
     let double = flags & DOUBLE_PRECISION != 0;
+    check_shape_size(flags, vertex_count, face_count, bytes.len() - start)
+        .map_err(|e| format!("shape {shape_index}: {e}"))?;
     let positions = z.vectors::<3>(nv, double, "positions")?;
     let normals = if flags & HAS_NORMALS != 0 {
         Some(z.vectors::<3>(nv, double, "normals")?)
@@ -164,6 +176,45 @@ pub fn read_serialized_shape(bytes: &[u8], shape_index: usize) -> Result<Seriali
     mesh.validate()
         .map_err(|e| format!("shape {shape_index}: {e}"))?;
     Ok(SerializedShape { name, mesh })
+}
+
+/// Checks, before anything is inflated, that the bytes the header's counts and flags ask for
+/// are at most [`MAX_SHAPE_BYTES`] and can come out of the `compressed` bytes from the
+/// shape's start to the end of the file ([`MAX_ZLIB_EXPANSION`]): a decompression bomb whose
+/// counts claim more than its stream can hold is refused here, not after inflating it.
+fn check_shape_size(
+    flags: u32,
+    vertices: u64,
+    faces: u64,
+    compressed: usize,
+) -> Result<(), String> {
+    let scalar = if flags & DOUBLE_PRECISION != 0 { 8 } else { 4 };
+    let mut per_vertex = 3 * scalar;
+    for (flag, n) in [(HAS_NORMALS, 3), (HAS_TEXCOORDS, 2), (HAS_COLORS, 3)] {
+        if flags & flag != 0 {
+            per_vertex += n * scalar;
+        }
+    }
+    let needed = vertices
+        .saturating_mul(per_vertex)
+        .saturating_add(faces.saturating_mul(12));
+    if needed > MAX_SHAPE_BYTES {
+        return Err(format!(
+            "{vertices} vertices and {faces} triangles need {needed} bytes, more than the \
+             limit of {MAX_SHAPE_BYTES} bytes of mesh data"
+        ));
+    }
+    let bound = (compressed as u64)
+        .saturating_mul(MAX_ZLIB_EXPANSION)
+        .saturating_add(EXPANSION_SLACK);
+    if needed > bound {
+        return Err(format!(
+            "{vertices} vertices and {faces} triangles need {needed} bytes, more than \
+             {compressed} compressed bytes can hold (deflate expands at most \
+             {MAX_ZLIB_EXPANSION} times)"
+        ));
+    }
+    Ok(())
 }
 
 fn read_u32(bytes: &[u8], at: u64) -> Option<u32> {

@@ -436,6 +436,20 @@ pub(super) fn integrator_desc(o: &Object) -> Result<(IntegratorDesc, bool, Optio
                     describe(o)
                 ));
             }
+            // Every patch has two sides that may become patches of the solution, each
+            // casting rays_per_patch rays; meshing gives at least patch_count patches, so
+            // the layout's own check (radiosity::MAX_RAYS) would refuse this product too,
+            // after loading the whole scene.
+            let rays = 2 * patch_count as u64 * rays_per_patch as u64;
+            if patch_size == 0.0 && rays > crate::integrator::radiosity::MAX_RAYS {
+                return bad(format!(
+                    "patch_count ({patch_count}) x 2 sides x rays_per_patch ({rays_per_patch}) \
+                     of {} is {rays} form-factor rays, more than the limit of {} (lower \
+                     patch_count or rays_per_patch)",
+                    describe(o),
+                    crate::integrator::radiosity::MAX_RAYS
+                ));
+            }
             if !(residual > 0.0 && residual < 1.0) {
                 return bad(format!(
                     "residual of {} must be in (0, 1), got {residual}",
