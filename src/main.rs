@@ -9,7 +9,9 @@ use penumbra::scene::Scene;
 use penumbra::study::compare;
 use std::collections::BTreeMap;
 use std::io::IsTerminal;
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
+use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
+use std::sync::Arc;
 use std::time::Duration;
 
 #[derive(Parser)]
@@ -191,11 +193,16 @@ struct RenderArgs {
     /// No progress bar and no summary line.
     #[arg(short, long)]
     quiet: bool,
+    /// Fail (exit status 1, after writing the image) if any sample was NaN or infinite:
+    /// such samples are dropped from the image, and counted in the summary either way.
+    #[arg(long)]
+    strict: bool,
     /// Render only part I of N of the samples (whole passes, contiguous) and write its sums
     /// to the output as a part file for `penumbra merge` (e.g. one Slurm array task each).
+    /// An interrupted part (SIGINT, SIGTERM) writes its samples so far to its checkpoint
+    /// (--checkpoint, default the output path with .ckpt appended), which --resume continues.
     #[arg(long, value_name = "I/N", value_parser = parse_part,
-          conflicts_with_all = ["resume", "checkpoint", "checkpoint_every", "time_limit",
-                                "target_rel_error", "variance", "preview"])]
+          conflicts_with_all = ["time_limit", "target_rel_error", "variance", "preview"])]
     part: Option<(u32, u32)>,
     /// With --part: the parts extend a render of this many spp (a multiple of the pass size)
     /// up to --spp, to be merged with that render's parts.
@@ -277,12 +284,113 @@ fn stats_json(fields: &[(&str, String)]) -> String {
     format!("{{\n{}\n}}\n", body.join(",\n"))
 }
 
+/// A render stopped by SIGINT or SIGTERM after saving what it had: `main` prints `message`
+/// (one line) and exits with status 128 + `signal`, as a shell reports a process killed by
+/// that signal (130 for SIGINT, 143 for SIGTERM).
+#[derive(Debug)]
+struct Interrupted {
+    signal: i32,
+    message: String,
+}
+
+impl std::fmt::Display for Interrupted {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(&self.message)
+    }
+}
+
+impl std::error::Error for Interrupted {}
+
+/// SIGINT (Ctrl-C) and SIGTERM (`kill`, Slurm at a job's time limit), caught: each sets
+/// `stop`, which the render checks after every pass, and `which` to its number. Further
+/// signals do nothing more, so that they cannot interrupt the writes that follow (SIGKILL
+/// still ends the process at once; the atomic writes then leave the previous files whole).
+struct Signals {
+    stop: Arc<AtomicBool>,
+    which: Arc<AtomicUsize>,
+}
+
+impl Signals {
+    fn catch() -> Result<Self> {
+        use signal_hook::consts::{SIGINT, SIGTERM};
+        let stop = Arc::new(AtomicBool::new(false));
+        let which = Arc::new(AtomicUsize::new(0));
+        for signal in [SIGINT, SIGTERM] {
+            // In this order: `which` is set before `stop` is seen.
+            signal_hook::flag::register_usize(signal, which.clone(), signal as usize)
+                .and_then(|_| signal_hook::flag::register(signal, stop.clone()))
+                .context("cannot install the signal handlers")?;
+        }
+        Ok(Signals { stop, which })
+    }
+
+    /// The signal that stopped the render, if one did: its number and name.
+    fn received(&self) -> Option<(i32, &'static str)> {
+        if !self.stop.load(Ordering::SeqCst) {
+            return None;
+        }
+        let n = self.which.load(Ordering::SeqCst) as i32;
+        Some((
+            n,
+            match n {
+                signal_hook::consts::SIGINT => "SIGINT",
+                signal_hook::consts::SIGTERM => "SIGTERM",
+                _ => "a signal",
+            },
+        ))
+    }
+}
+
+/// Fails unless every one of `outputs` (path, what it is) can be written: its directory
+/// exists and takes a new file. Checked before any scene data is loaded, so that a long
+/// render never ends in an unwritable path.
+fn check_outputs(outputs: &[(&Path, &str)]) -> Result<()> {
+    for (path, what) in outputs {
+        penumbra::io::atomic::check_writable(path)
+            .with_context(|| format!("{}: cannot write {what}", path.display()))?;
+    }
+    Ok(())
+}
+
+/// The checkpoint path of a render: --checkpoint, or the output path with .ckpt appended.
+fn checkpoint_path(args: &RenderArgs) -> PathBuf {
+    args.checkpoint.clone().unwrap_or_else(|| {
+        let mut p = args.output.clone().into_os_string();
+        p.push(".ckpt");
+        PathBuf::from(p)
+    })
+}
+
 fn run_render(args: RenderArgs) -> Result<()> {
+    let signals = Signals::catch()?;
     let defines = args
         .define
         .iter()
         .map(|d| parse_define(d))
         .collect::<Result<Vec<_>>>()?;
+    let checkpointing_asked =
+        args.checkpoint_every.is_some() || args.checkpoint.is_some() || args.resume;
+    let checkpoint_path = checkpoint_path(&args);
+    {
+        let mut outputs: Vec<(&Path, &str)> = vec![(
+            &args.output,
+            if args.part.is_some() {
+                "part file"
+            } else {
+                "image"
+            },
+        )];
+        if checkpointing_asked || args.part.is_some() {
+            outputs.push((&checkpoint_path, "checkpoint"));
+        }
+        if let Some(p) = &args.preview {
+            outputs.push((p, "preview"));
+        }
+        if let Some(p) = &args.stats {
+            outputs.push((p, "statistics"));
+        }
+        check_outputs(&outputs)?;
+    }
     let mut desc = Scene::load_description(&args.scene, &defines)?;
     if let Some(n) = args.sensor {
         desc.select_sensor(n)?;
@@ -315,18 +423,10 @@ fn run_render(args: RenderArgs) -> Result<()> {
         }
     }
     let seed = args.seed.unwrap_or(scene.seed);
-    let checkpoint_path = args.checkpoint.clone().unwrap_or_else(|| {
-        let mut p = args.output.clone().into_os_string();
-        p.push(".ckpt");
-        PathBuf::from(p)
+    let checkpointing = checkpointing_asked.then(|| progressive::Checkpointing {
+        path: checkpoint_path.clone(),
+        every: args.checkpoint_every.unwrap_or(Duration::from_secs(300)),
     });
-    let checkpointing = (args.checkpoint_every.is_some()
-        || args.checkpoint.is_some()
-        || args.resume)
-        .then(|| progressive::Checkpointing {
-            path: checkpoint_path.clone(),
-            every: args.checkpoint_every.unwrap_or(Duration::from_secs(300)),
-        });
     let resume = if args.resume {
         Some(progressive::Checkpoint::read(&checkpoint_path)?)
     } else {
@@ -334,20 +434,20 @@ fn run_render(args: RenderArgs) -> Result<()> {
     };
     // The sampler's points per pass: `--spp` sets them as Mitsuba's render(spp=...) does
     // (rounded by the plugin); a resumed render keeps the checkpoint's, so that its further
-    // samples continue the same passes.
+    // samples continue the same passes (a resumed part has its plan's, which it checks).
     let spp = match (&resume, args.spp) {
-        (Some(checkpoint), spp) => {
+        (Some(checkpoint), spp) if args.part.is_none() => {
             scene.sampler.sample_count = checkpoint.sampler_points;
             spp.unwrap_or(scene.sample_count)
         }
-        (None, Some(spp)) => {
+        (_, Some(spp)) => {
             let (rounded, warning) = scene.set_sample_count(spp);
             if let Some(w) = warning {
                 eprintln!("warning: {w} (--spp)");
             }
             rounded
         }
-        (None, None) => scene.sample_count,
+        (_, None) => scene.sample_count,
     };
     let settings = progressive::ProgressiveSettings {
         spp,
@@ -364,7 +464,7 @@ fn run_render(args: RenderArgs) -> Result<()> {
         }),
         checkpoint: checkpointing,
         scene_hash,
-        stop: None,
+        stop: Some(signals.stop.clone()),
     };
     if let penumbra::integrator::Integrator::Aov(_) = scene.integrator {
         return render_aov(&mut scene, &args, spp, seed);
@@ -376,20 +476,60 @@ fn run_render(args: RenderArgs) -> Result<()> {
             plan_spp: spp as u64,
             start_spp: args.start_spp,
         };
-        let part = progressive::render_part(&scene, &plan, seed, args.threads, scene_hash)?;
-        part.write(&args.output)?;
+        let part_settings = progressive::PartSettings {
+            seed,
+            threads: args.threads,
+            scene_hash,
+            stop: Some(signals.stop.clone()),
+            checkpoint: Some(progressive::Checkpointing {
+                path: checkpoint_path.clone(),
+                every: args.checkpoint_every.unwrap_or(Duration::MAX),
+            }),
+        };
+        let warned = AtomicBool::new(false);
+        let run = progressive::render_part_with(&scene, &plan, &part_settings, resume, &|r| {
+            warn_checkpoint(r.checkpoint_error.as_deref(), &warned, &|m| {
+                eprintln!("{m}")
+            })
+        })?;
+        let part = &run.part;
+        let (a, b) = (part.first_sample, part.first_sample + part.samples);
+        if let Some((signal, name)) = signals.received() {
+            if run.reason == progressive::StopReason::Interrupted {
+                let saved = match &run.checkpoint_error {
+                    None => format!(
+                        "its checkpoint {} holds them (continue with --resume)",
+                        checkpoint_path.display()
+                    ),
+                    Some(e) => format!("its checkpoint was not written: {e}"),
+                };
+                return Err(Interrupted {
+                    signal,
+                    message: format!(
+                        "interrupted by {name}: part {index}/{count} stopped after samples \
+                         {a}..{b}; {saved}; no part file written"
+                    ),
+                }
+                .into());
+            }
+        }
+        progressive::write_checkpoint_retrying(part, &args.output)?;
+        // The part file holds everything its checkpoint did.
+        if args.resume || args.checkpoint_every.is_some() {
+            let _ = std::fs::remove_file(&checkpoint_path);
+        }
         if !args.quiet {
             let secs = part.stats.seconds.max(1e-9);
             eprintln!(
-                "part {index}/{count} of {spp} spp: samples {}..{} of every pixel, {:.2} s, {:.2} Mpath/s -> {}",
-                part.first_sample,
-                part.first_sample + part.samples,
+                "part {index}/{count} of {spp} spp: samples {a}..{b} of every pixel, {:.2} s, \
+                 {:.2} Mpath/s, {} non-finite samples dropped -> {}",
                 part.stats.seconds,
                 part.stats.paths as f64 / secs / 1e6,
+                part.stats.nonfinite,
                 args.output.display()
             );
         }
-        return Ok(());
+        return strict_check(args.strict, part.stats.nonfinite, &args.output);
     }
     let pixels = (scene.width * scene.height) as u64;
     let bar = if args.quiet || !std::io::stderr().is_terminal() {
@@ -405,23 +545,89 @@ fn run_render(args: RenderArgs) -> Result<()> {
         );
         b
     };
+    let warned = AtomicBool::new(false);
     let (progress, reason) = progressive::render_progressive(&scene, &settings, resume, &|p| {
+        warn_checkpoint(p.checkpoint_error.as_deref(), &warned, &|m| {
+            bar.suspend(|| eprintln!("{m}"))
+        });
         bar.set_position(p.samples * pixels)
     })?;
     bar.finish_and_clear();
-    let reason_text = reason.as_str();
+    let interrupted = match signals.received() {
+        Some(s) if reason == progressive::StopReason::Interrupted => Some(s),
+        _ => None,
+    };
+    if let (Some((signal, name)), 0) = (interrupted, progress.samples) {
+        return Err(Interrupted {
+            signal,
+            message: format!("interrupted by {name} before the first pass: nothing written"),
+        }
+        .into());
+    }
     write_image(&ImageOutput {
         output: &args.output,
         film: &progress.film,
         spp: progress.samples,
         seed,
         stats: progress.stats,
-        reason: reason_text,
+        reason: reason.as_str(),
         variance: args.variance,
         preview: args.preview.as_deref(),
         stats_json_path: args.stats.as_deref(),
         quiet: args.quiet,
-    })
+    })?;
+    let checkpoint_note = match (&settings.checkpoint, &progress.checkpoint_error) {
+        (None, _) => String::new(),
+        (Some(cp), None) => format!(
+            " and the checkpoint {} (continue with --resume)",
+            cp.path.display()
+        ),
+        (Some(_), Some(e)) => format!("; the checkpoint was not written: {e}"),
+    };
+    if let Some((signal, name)) = interrupted {
+        return Err(Interrupted {
+            signal,
+            message: format!(
+                "interrupted by {name} after {} of {spp} spp: wrote {}{checkpoint_note}",
+                progress.samples,
+                args.output.display()
+            ),
+        }
+        .into());
+    }
+    if let Some(e) = &progress.checkpoint_error {
+        bail!(
+            "the final checkpoint was not written: {e} (the image was written to {})",
+            args.output.display()
+        );
+    }
+    strict_check(args.strict, progress.stats.nonfinite, &args.output)
+}
+
+/// Prints one warning when a checkpoint write fails (after its retries), and no more until
+/// one has succeeded again: the render goes on either way.
+fn warn_checkpoint(error: Option<&str>, warned: &AtomicBool, print: &dyn Fn(&str)) {
+    match error {
+        Some(e) if !warned.swap(true, Ordering::Relaxed) => print(&format!(
+            "warning: checkpoint not written, the render goes on (and tries again at the next \
+             checkpoint): {e}"
+        )),
+        Some(_) => {}
+        None => warned.store(false, Ordering::Relaxed),
+    }
+}
+
+/// --strict: an error naming the count if any sample was dropped as NaN or infinite (the
+/// image is written by then).
+fn strict_check(strict: bool, nonfinite: u64, output: &Path) -> Result<()> {
+    if strict && nonfinite > 0 {
+        bail!(
+            "{nonfinite} non-finite sample{} dropped (--strict); the image was written to {}",
+            if nonfinite == 1 { " was" } else { "s were" },
+            output.display()
+        );
+    }
+    Ok(())
 }
 
 /// An `aov` scene: every channel group rendered with the same samples and written as named
@@ -453,16 +659,17 @@ fn render_aov(scene: &mut Scene, args: &RenderArgs, spp: u32, seed: u64) -> Resu
     if !args.quiet {
         let names: Vec<&str> = channels.iter().map(|(n, _)| n.as_str()).collect();
         eprintln!(
-            "{}x{}, {} spp, {:.2} s, channels {} -> {}",
+            "{}x{}, {} spp, {:.2} s, channels {}, {} non-finite samples dropped -> {}",
             scene.width,
             scene.height,
             spp,
             stats.seconds,
             names.join(" "),
+            stats.nonfinite,
             args.output.display()
         );
     }
-    Ok(())
+    strict_check(args.strict, stats.nonfinite, &args.output)
 }
 
 /// The EXR header attributes every render writes: spp, seed, time and penumbra's version.
@@ -549,7 +756,8 @@ fn write_image(o: &ImageOutput) -> Result<()> {
             ("nonfinite_samples", stats.nonfinite.to_string()),
             ("penumbra_version", format!("\"{}\"", penumbra::VERSION)),
         ]);
-        std::fs::write(path, json).with_context(|| format!("cannot write {}", path.display()))?;
+        penumbra::io::atomic::write_bytes(path, json.as_bytes())
+            .with_context(|| format!("{}: cannot write statistics", path.display()))?;
     }
     if !o.quiet {
         eprintln!(
@@ -572,6 +780,14 @@ fn write_image(o: &ImageOutput) -> Result<()> {
 }
 
 fn run_merge(args: MergeArgs) -> Result<()> {
+    let mut outputs: Vec<(&Path, &str)> = vec![(&args.output, "image")];
+    if let Some(p) = &args.preview {
+        outputs.push((p, "preview"));
+    }
+    if let Some(p) = &args.stats {
+        outputs.push((p, "statistics"));
+    }
+    check_outputs(&outputs)?;
     // One part in memory at a time: the merge's memory does not grow with the parts.
     let merged = progressive::merge_part_files(&args.parts, args.spp)?;
     write_image(&ImageOutput {
@@ -944,6 +1160,10 @@ fn main() {
         Command::Report(args) => run_report(args),
     };
     if let Err(e) = result {
+        if let Some(i) = e.downcast_ref::<Interrupted>() {
+            eprintln!("{i}");
+            std::process::exit(128 + i.signal);
+        }
         eprintln!("error: {e:#}");
         std::process::exit(1);
     }

@@ -14,7 +14,7 @@ use crate::error::{Error, Result};
 use crate::film::{ExactFilm, Film, Filter, EXACT_VALUES};
 use crate::render::{render, RenderSettings, RenderStats};
 use crate::scene::Scene;
-use std::io::{Read, Write};
+use std::io::Read;
 use std::path::{Path, PathBuf};
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::Arc;
@@ -93,6 +93,13 @@ pub struct Progress {
     pub stats: RenderStats,
     /// An SPPM render's state (its film is made from it, not summed).
     pub sppm: Option<crate::integrator::sppm::SppmState>,
+    /// Checkpoint writes that failed so far (each after its retries, see
+    /// [`write_checkpoint_retrying`]): a failed checkpoint never stops the render.
+    pub checkpoint_failures: u64,
+    /// Why the latest checkpoint write failed; `None` once a later one succeeds. Set when
+    /// [`render_progressive`] returns, it is the final checkpoint's failure: the file on disk
+    /// (if any) holds an earlier state.
+    pub checkpoint_error: Option<String>,
 }
 
 /// Minimum samples per pixel before a target error is trusted (variance estimates from fewer
@@ -208,6 +215,8 @@ pub fn render_progressive(
                 samples: c.samples,
                 stats: c.stats,
                 sppm: c.sppm,
+                checkpoint_failures: 0,
+                checkpoint_error: None,
             }
         }
         None => Progress {
@@ -216,8 +225,13 @@ pub fn render_progressive(
             samples: 0,
             stats: RenderStats::default(),
             sppm: sppm.map(|s| crate::integrator::sppm::SppmState::new(scene, s)),
+            checkpoint_failures: 0,
+            checkpoint_error: None,
         },
     };
+    // The samples the checkpoint file holds (as far as this render knows): the final
+    // checkpoint is not written again when the last pass's is already on disk.
+    let mut checkpointed = progress.samples;
     // SPPM's passes run on one pool (a path render's passes make theirs in `render`); the
     // exact film adds its passes on one too, with the render's thread count.
     let pool = crate::render::thread_pool(settings.threads)?;
@@ -277,18 +291,64 @@ pub fn render_progressive(
         progress.stats.path += stats.path;
         progress.stats.nonfinite += stats.nonfinite;
         progress.stats.seconds += stats.seconds;
-        on_pass(&progress);
         if let Some(cp) = &settings.checkpoint {
             if last_checkpoint.elapsed() >= cp.every {
-                Checkpoint::from_progress(&progress, settings, pass, scene).write(&cp.path)?;
+                let c = Checkpoint::from_progress(&progress, settings, pass, scene);
+                note_checkpoint(&mut progress, write_checkpoint_retrying(&c, &cp.path));
+                if progress.checkpoint_error.is_none() {
+                    checkpointed = progress.samples;
+                }
                 last_checkpoint = Instant::now();
             }
         }
+        on_pass(&progress);
     };
+    // The final checkpoint (unless the file holds this state already): a failure is
+    // reported in `progress.checkpoint_error`, so that the caller still writes its image.
     if let Some(cp) = &settings.checkpoint {
-        Checkpoint::from_progress(&progress, settings, pass, scene).write(&cp.path)?;
+        if checkpointed != progress.samples || progress.checkpoint_error.is_some() {
+            let c = Checkpoint::from_progress(&progress, settings, pass, scene);
+            note_checkpoint(&mut progress, write_checkpoint_retrying(&c, &cp.path));
+        }
     }
     Ok((progress, reason))
+}
+
+/// Waits before the second, third, ... attempt of a checkpoint write.
+pub const CHECKPOINT_RETRY_DELAYS: [Duration; 2] =
+    [Duration::from_millis(100), Duration::from_millis(400)];
+
+/// Writes a checkpoint (or part file), trying again after each of
+/// [`CHECKPOINT_RETRY_DELAYS`] when a write fails (a full disk that is cleared, a file
+/// system that hiccups); the last failure is returned with the number of attempts.
+pub fn write_checkpoint_retrying(c: &Checkpoint, path: &Path) -> Result<()> {
+    let mut attempt = 0;
+    loop {
+        match c.write(path) {
+            Ok(()) => return Ok(()),
+            Err(e) => match CHECKPOINT_RETRY_DELAYS.get(attempt) {
+                Some(delay) => std::thread::sleep(*delay),
+                None => {
+                    return Err(Error::Invalid(format!(
+                        "{e} ({} attempts)",
+                        CHECKPOINT_RETRY_DELAYS.len() + 1
+                    )))
+                }
+            },
+        }
+        attempt += 1;
+    }
+}
+
+/// Records the outcome of a checkpoint write in `progress`.
+fn note_checkpoint(progress: &mut Progress, r: Result<()>) {
+    match r {
+        Ok(()) => progress.checkpoint_error = None,
+        Err(e) => {
+            progress.checkpoint_failures += 1;
+            progress.checkpoint_error = Some(e.to_string());
+        }
+    }
 }
 
 /// FNV-1a, 64 bit: a stable hash for scene identity (not for security).
@@ -305,8 +365,14 @@ pub fn fnv1a(bytes: &[u8], mut h: u64) -> u64 {
 pub fn scene_hash(desc: &crate::scene::description::SceneDescription) -> u64 {
     let mut h = fnv1a(format!("{desc:?}").as_bytes(), 0xcbf2_9ce4_8422_2325);
     for path in desc.files() {
-        if let Ok(bytes) = std::fs::read(path) {
-            h = fnv1a(&bytes, h);
+        // Streamed, and bounded as the loaders are: a device, a FIFO, a directory or a file
+        // larger than any loader reads is left out here (its loader then refuses it).
+        let mut file_h = h;
+        let read = crate::io::read_file_chunks(path, crate::io::MAX_INPUT_FILE_BYTES, |chunk| {
+            file_h = fnv1a(chunk, file_h)
+        });
+        if read.is_ok() {
+            h = file_h;
         }
     }
     h
@@ -651,24 +717,14 @@ impl Checkpoint {
         buf
     }
 
-    /// Writes atomically: to a temporary file next to `path`, synced, then renamed over it, so
-    /// a crash never leaves a half-written checkpoint.
+    /// Writes atomically ([`crate::io::atomic`]): to a temporary file of a unique name next
+    /// to `path`, synced, then renamed over it, so that a crash never leaves a half-written
+    /// checkpoint and two processes writing the same path never mix their bytes.
     pub fn write(&self, path: &Path) -> Result<()> {
-        let err = |e: std::io::Error| Error::Io {
+        crate::io::atomic::write_bytes(path, &self.to_bytes()).map_err(|cause| Error::Io {
             path: path.to_path_buf(),
-            cause: e,
-        };
-        let buf = self.to_bytes();
-        let name = path
-            .file_name()
-            .map(|n| n.to_string_lossy().into_owned())
-            .unwrap_or_default();
-        let tmp = path.with_file_name(format!(".{name}.tmp"));
-        let mut f = std::fs::File::create(&tmp).map_err(err)?;
-        f.write_all(&buf).map_err(err)?;
-        f.sync_all().map_err(err)?;
-        drop(f);
-        std::fs::rename(&tmp, path).map_err(err)
+            cause,
+        })
     }
 
     /// Reads a checkpoint or part file written by [`Checkpoint::write`] (or by the previous
@@ -876,6 +932,58 @@ pub fn render_part(
     threads: Option<usize>,
     scene_hash: u64,
 ) -> Result<Checkpoint> {
+    let settings = PartSettings {
+        seed,
+        threads,
+        scene_hash,
+        stop: None,
+        checkpoint: None,
+    };
+    Ok(render_part_with(scene, plan, &settings, None, &|_| {})?.part)
+}
+
+/// How [`render_part_with`] renders a part: [`render_part`]'s arguments, and what makes a
+/// long part stoppable and resumable.
+#[derive(Clone, Debug)]
+pub struct PartSettings {
+    pub seed: u64,
+    pub threads: Option<usize>,
+    pub scene_hash: u64,
+    /// Checked after every pass, as [`ProgressiveSettings::stop`]: once set, the part ends
+    /// with [`StopReason::Interrupted`] and the passes done so far.
+    pub stop: Option<Arc<AtomicBool>>,
+    /// The part's checkpoint: its samples so far (a part file's header with fewer samples
+    /// than the plan gives it), written every `every` and when the part is interrupted, not
+    /// when it completes (the part file is then the whole result).
+    pub checkpoint: Option<Checkpointing>,
+}
+
+/// What [`render_part_with`] rendered.
+#[derive(Clone, Debug)]
+pub struct PartRun {
+    /// The part's sums: the samples [first_sample, first_sample + samples) of every pixel;
+    /// all of the part's samples unless `reason` is [`StopReason::Interrupted`].
+    pub part: Checkpoint,
+    /// [`StopReason::SppReached`] (the part is complete) or [`StopReason::Interrupted`].
+    pub reason: StopReason,
+    /// As in [`Progress`]: failed checkpoint writes, and why the latest one failed (`None`
+    /// once a later one succeeded; when the part was interrupted, the interrupted state's).
+    pub checkpoint_failures: u64,
+    pub checkpoint_error: Option<String>,
+}
+
+/// [`render_part`], stoppable and resumable: continues the part checkpoint `resume` (which
+/// must be of this part of this plan, scene, seed and version), writes checkpoints as
+/// `settings` asks, and stops after the pass under way once `settings.stop` is set. A part
+/// resumed and completed is bit-identical to the part rendered in one go. `on_pass` sees the
+/// state after every pass (and after its checkpoint, if one was due).
+pub fn render_part_with(
+    scene: &Scene,
+    plan: &PartPlan,
+    settings: &PartSettings,
+    resume: Option<Checkpoint>,
+    on_pass: &(dyn Fn(&PartRun) + Sync),
+) -> Result<PartRun> {
     if matches!(scene.integrator, crate::integrator::Integrator::Sppm(_)) {
         return Err(Error::Invalid(
             "an sppm render cannot be split into parts (each iteration continues the \
@@ -886,47 +994,155 @@ pub fn render_part(
     }
     let pass = pass_spp(scene.width, scene.height);
     let (a, b) = part_range(plan, pass)?;
-    let mut exact = ExactFilm::new(scene.width, scene.height);
-    let mut stats = RenderStats::default();
-    let pool = crate::render::thread_pool(threads)?;
-    let mut at = a;
+    let mut run = PartRun {
+        part: Checkpoint {
+            version: crate::VERSION.to_string(),
+            scene_hash: settings.scene_hash,
+            seed: settings.seed,
+            pass_spp: pass,
+            sampler_points: scene.sampler.sample_count,
+            first_sample: a,
+            samples: 0,
+            plan_spp: plan.plan_spp,
+            plan_start: plan.start_spp,
+            part: Some((plan.index, plan.count)),
+            stats: RenderStats::default(),
+            filter: scene.filter,
+            exact: ExactFilm::new(scene.width, scene.height),
+            sppm: None,
+        },
+        reason: StopReason::SppReached,
+        checkpoint_failures: 0,
+        checkpoint_error: None,
+    };
+    if let Some(c) = resume {
+        check_part_resume(&c, &run.part, b)?;
+        run.part.samples = c.samples;
+        run.part.stats = c.stats;
+        run.part.exact = c.exact;
+    }
+    let pool = crate::render::thread_pool(settings.threads)?;
+    let mut last_checkpoint = Instant::now();
+    let mut checkpointed = run.part.samples;
+    let mut at = a + run.part.samples;
     while at < b {
+        if settings
+            .stop
+            .as_ref()
+            .is_some_and(|s| s.load(Ordering::Relaxed))
+        {
+            run.reason = StopReason::Interrupted;
+            break;
+        }
         let spp = (pass as u64).min(b - at) as u32;
         let out = render(
             scene,
             &RenderSettings {
                 spp,
-                seed,
-                threads,
+                seed: settings.seed,
+                threads: settings.threads,
                 sampler: None,
                 first_sample: at,
             },
             &|_, _| {},
         )?;
+        let part = &mut run.part;
+        let exact = &mut part.exact;
         pool.install(|| exact.add(&out.film))
             .map_err(|e| Error::Invalid(e.to_string()))?;
-        stats.paths += out.stats.paths;
-        stats.path += out.stats.path;
-        stats.nonfinite += out.stats.nonfinite;
-        stats.seconds += out.stats.seconds;
+        part.stats.paths += out.stats.paths;
+        part.stats.path += out.stats.path;
+        part.stats.nonfinite += out.stats.nonfinite;
+        part.stats.seconds += out.stats.seconds;
         at += spp as u64;
+        part.samples = at - a;
+        if let Some(cp) = &settings.checkpoint {
+            if at < b && last_checkpoint.elapsed() >= cp.every {
+                let r = write_checkpoint_retrying(&run.part, &cp.path);
+                note_part_checkpoint(&mut run, r);
+                if run.checkpoint_error.is_none() {
+                    checkpointed = run.part.samples;
+                }
+                last_checkpoint = Instant::now();
+            }
+        }
+        on_pass(&run);
     }
-    Ok(Checkpoint {
-        version: crate::VERSION.to_string(),
-        scene_hash,
-        seed,
-        pass_spp: pass,
-        sampler_points: scene.sampler.sample_count,
-        first_sample: a,
-        samples: b - a,
-        plan_spp: plan.plan_spp,
-        plan_start: plan.start_spp,
-        part: Some((plan.index, plan.count)),
-        stats,
-        filter: scene.filter,
-        exact,
-        sppm: None,
-    })
+    if run.reason == StopReason::Interrupted {
+        if let Some(cp) = &settings.checkpoint {
+            if checkpointed != run.part.samples || run.checkpoint_error.is_some() {
+                let r = write_checkpoint_retrying(&run.part, &cp.path);
+                note_part_checkpoint(&mut run, r);
+            }
+        }
+    }
+    Ok(run)
+}
+
+fn note_part_checkpoint(run: &mut PartRun, r: Result<()>) {
+    match r {
+        Ok(()) => run.checkpoint_error = None,
+        Err(e) => {
+            run.checkpoint_failures += 1;
+            run.checkpoint_error = Some(e.to_string());
+        }
+    }
+}
+
+/// Refuses to continue a part from `c` unless it is a checkpoint of the part `fresh`
+/// describes (same plan, part, scene, seed, sampler, resolution and version), within the
+/// part's samples (which end at `end`).
+fn check_part_resume(c: &Checkpoint, fresh: &Checkpoint, end: u64) -> Result<()> {
+    let refuse = |what: String| {
+        Err(Error::Invalid(format!(
+            "cannot resume the part: the checkpoint was made {what}"
+        )))
+    };
+    let (i, n) = fresh.part.unwrap_or((0, 0));
+    match c.part {
+        None => return refuse("by a render without --part (resume it without --part)".into()),
+        Some(p) if p != (i, n) => {
+            return refuse(format!("for part {}/{} (this is part {i}/{n})", p.0, p.1))
+        }
+        Some(_) => {}
+    }
+    if (c.plan_spp, c.plan_start) != (fresh.plan_spp, fresh.plan_start) {
+        return refuse(format!(
+            "for a plan of {} spp from {} (this part's plan: {} spp from {})",
+            c.plan_spp, c.plan_start, fresh.plan_spp, fresh.plan_start
+        ));
+    }
+    if c.version != fresh.version {
+        return refuse(format!(
+            "by penumbra {} (this is {})",
+            c.version, fresh.version
+        ));
+    }
+    if c.scene_hash != fresh.scene_hash {
+        return refuse("from another scene (or other -D values or mesh files)".into());
+    }
+    if c.seed != fresh.seed {
+        return refuse(format!(
+            "with seed {} (this render uses {})",
+            c.seed, fresh.seed
+        ));
+    }
+    if (c.exact.width, c.exact.height) != (fresh.exact.width, fresh.exact.height)
+        || c.pass_spp != fresh.pass_spp
+        || c.filter != fresh.filter
+        || c.sampler_points != fresh.sampler_points
+    {
+        return refuse("for another resolution, filter or sampler".into());
+    }
+    if c.sppm.is_some()
+        || c.first_sample != fresh.first_sample
+        || c.first_sample
+            .checked_add(c.samples)
+            .is_none_or(|e| e > end)
+    {
+        return refuse("for other samples than this part's".into());
+    }
+    Ok(())
 }
 
 /// The parts to add, in order, and what they make up: checked from their headers alone.

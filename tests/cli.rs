@@ -477,7 +477,10 @@ fn io_error_messages_do_not_repeat_their_cause() {
     let line = assert_error(&out, &[]);
     assert_eq!(
         line,
-        format!("error: {}: not a regular file", directory.display())
+        format!(
+            "error: {}: is a directory, not a regular file",
+            directory.display()
+        )
     );
     let scene = dir.write(
         "scene.xml",
