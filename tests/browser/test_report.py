@@ -235,3 +235,32 @@ def test_page_opens_from_disk(browser, report):
     assert lo <= 0.1 <= hi
     assert errors == []
     page.close()
+
+
+# A file name that is markup: shown as the text it is, never run (it would set window.pwned).
+HOSTILE = "<img src=x onerror=\"window.pwned=1\">.exr"
+
+
+def test_file_names_are_shown_as_text_and_never_run(browser, tmp_path):
+    ref = np.full((4, 4, 3), 0.25, dtype=np.float32)
+    penumbra.write_exr(tmp_path / "ref.exr", ref)
+    penumbra.write_exr(tmp_path / HOSTILE, 2 * ref)
+    out = tmp_path / "page"
+    subprocess.run(
+        [cli(), "report", "--reference", tmp_path / "ref.exr", tmp_path / HOSTILE, "-o", out],
+        check=True,
+        capture_output=True,
+    )
+    page = browser.new_page(viewport={"width": 1400, "height": 1000})
+    errors = []
+    page.on("pageerror", lambda e: errors.append(str(e)))
+    page.goto((out / "index.html").as_uri())
+    page.wait_for_selector("#metrics tr[data-image]")
+    page.wait_for_timeout(200)  # an onerror handler runs once the image fails to load
+    assert page.evaluate("window.pwned") is None
+    assert page.locator("#metrics img").count() == 0
+    rows = page.locator("#metrics tr[data-image]")
+    assert rows.nth(1).locator("td").nth(0).inner_text() == f"2: {HOSTILE}"
+    assert page.locator("#images button").nth(1).inner_text() == f"2: {HOSTILE}"
+    assert errors == []
+    page.close()
