@@ -69,6 +69,44 @@ def test_render_equals_the_cli_exr_bit_for_bit(cbox, tmp_path):
     assert attrs["spp"] == str(cbox.spp) == "64"
 
 
+UNIT_RADIANCE = (18.387, 13.9873, 6.75357)
+
+
+def scaled_cornell(tmp_path, factor):
+    """The Cornell box with its light's radiance times `factor` (shortest decimal of the product)."""
+    xml = CBOX.read_text()
+    unit = '<rgb name="radiance" value="18.387, 13.9873, 6.75357"/>'
+    assert unit in xml
+    value = ", ".join(repr(x * factor) for x in UNIT_RADIANCE)
+    xml = xml.replace(unit, f'<rgb name="radiance" value="{value}"/>')
+    xml = xml.replace('"meshes/', f'"{CBOX.parent / "meshes"}/')
+    path = tmp_path / f"cbox-{factor:e}.xml"
+    path.write_text(xml)
+    return penumbra.load(path, res=16)
+
+
+def test_render_is_exact_at_any_scale(tmp_path):
+    """The film sums exactly at any scale: the Cornell box lit 2^-66 or 2^53 times as brightly
+    renders the unit image times that factor bit for bit (f32 products of powers of two are
+    exact), and 1e-20 or 1e16 times within 8 ulps (the radiance rounds once in f32); the
+    variance scales with the factor's square (to f32 precision: subnormal at 2^-66)."""
+    unit, unit_var = scaled_cornell(tmp_path, 1.0).render(spp=16, seed=3, variance=True)
+    assert unit.max() > 0.1
+    for e in (-66, 53):
+        s = 2.0**e
+        img, var = scaled_cornell(tmp_path, s).render(spp=16, seed=3, variance=True)
+        assert np.array_equal(img, (unit.astype(np.float64) * s).astype(np.float32)), f"2^{e}"
+        # At 2^-66 the variance (~1e-43) is an f32 subnormal: rounded to its spacing 2^-149.
+        gap = np.abs(var.astype(np.float64) - unit_var.astype(np.float64) * s * s)
+        assert (gap <= (2.0**-149 if e < 0 else 0.0)).all(), f"2^{e}: {gap.max():.3g}"
+    for s in (1e-20, 1e16):
+        img = scaled_cornell(tmp_path, s).render(spp=16, seed=3)
+        want = unit.astype(np.float64) * s
+        rel = np.abs(img - want) / np.maximum(np.abs(want), 1e-300)
+        ok = (rel < 8 * np.finfo(np.float32).eps) | ((want == 0) & (img == 0))
+        assert ok.all(), f"{s:e}: worst relative error {rel.max():.3g}"
+
+
 def test_defines_reach_the_scene():
     assert penumbra.load(CBOX, res=8).width == 8
     assert penumbra.load(CBOX, res=8).render(spp=1).shape == (8, 8, 3)
