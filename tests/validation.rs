@@ -9,6 +9,7 @@
 
 mod common;
 use common::repo_path;
+use penumbra::film::{Film, FilmTile, Filter};
 use penumbra::study::convergence::{
     fit_log_log, fit_slope, reference_noise_floor, spp_ladder, FLOOR_FACTOR, MIN_FIT_STEPS,
 };
@@ -156,9 +157,11 @@ fn negative_controls(
         r.study.ladder.film.image(),
         r.study.ladder.film.sample_variance(),
     );
+    let mut scene = entry.load_scene(root).expect("scene");
+    let filter = scene.filter;
     let checks_fail = |rgb: &[[f32; 3]], var: &[[f32; 3]]| {
         let z = pixel_z_test(rgb, var, spp as f64, &r.reference).expect("z-test");
-        !z.passed() || !mean_check(rgb, var, spp as f64, &r.reference).passed()
+        !z.passed() || !mean_check(rgb, var, spp as f64, &r.reference, filter).passed()
     };
     let se = r.study.mean.channels.map(|c| c.se);
     let shift_sigmas = |d: [f64; 3]| (0..3).map(|c| d[c].abs() / se[c]).fold(0.0, f64::max);
@@ -177,7 +180,6 @@ fn negative_controls(
         depth_percent: 0.0,
     };
     // max_depth − 1
-    let mut scene = entry.load_scene(root).expect("scene");
     let max_depth = match &mut scene.integrator {
         Integrator::Path(p) => Some(&mut p.max_depth),
         Integrator::VolPath(p) => Some(&mut p.max_depth),
@@ -192,7 +194,7 @@ fn negative_controls(
             *max_depth -= 1;
             let out = common::render_scene(&scene, spp, SEED, None);
             let (rgb1, var1) = (out.film.image(), out.film.sample_variance());
-            let m1 = mean_check(&rgb1, &var1, spp as f64, &r.reference);
+            let m1 = mean_check(&rgb1, &var1, spp as f64, &r.reference, filter);
             let d: [f64; 3] =
                 std::array::from_fn(|k| r.study.mean.channels[k].ours - m1.channels[k].ours);
             c.depth_sigmas = shift_sigmas(d);
@@ -402,9 +404,77 @@ fn floor_and_slope_on_synthetic_images() {
     assert!(fit.passed(SLOPE_TOLERANCE), "{fit:?}");
 
     let n = 256.0;
-    let ok = mean_check(&noisy(&mut rng, n, 0.0), &v, n, &reference);
+    let ok = mean_check(&noisy(&mut rng, n, 0.0), &v, n, &reference, Filter::Box);
     assert!(ok.passed(), "{ok:?}");
-    let bright = mean_check(&noisy(&mut rng, n, 0.02), &v, n, &reference);
+    let bright = mean_check(&noisy(&mut rng, n, 0.02), &v, n, &reference, Filter::Box);
     assert!(!bright.passed(), "{bright:?}");
     assert!(bright.channels.iter().all(|c| c.relative() > 0.01));
+}
+
+/// Check 2's standard error is the image mean's, filter included: renders of a noisy
+/// constant through a wide film filter (each sample reaches up to 9×9 pixels, so the pixels
+/// are correlated), `ours` against an independent `reference`, over independent trials.
+/// If the se is right, Σ z² over the trials is χ² with one degree of freedom per trial;
+/// with the pixels' variances summed as if independent, it is K⁻¹ ≈ 4π (gaussian σ = 1) or
+/// π (Mitsuba's default σ = ½) times too large. Two-sided at α = 10⁻³ for the pair
+/// (Šidák).
+#[test]
+fn image_mean_standard_error_accounts_for_the_filter() {
+    let (w, h) = (24usize, 24usize);
+    let trials = 100;
+    let alpha = 1.0 - (1.0 - 1e-3f64).powf(0.5);
+    let mut rng = Pcg64::seed_from_u64(0x5e);
+    let render = |rng: &mut Pcg64, filter: Filter, spp: usize| -> Film {
+        let mut tile = FilmTile::new(0, 0, w, h, filter);
+        for y in 0..h {
+            for x in 0..w {
+                for _ in 0..spp {
+                    let pos = glam::Vec2::new(
+                        x as f32 + rng.random::<f32>(),
+                        y as f32 + rng.random::<f32>(),
+                    );
+                    let v = 2.0 * rng.random::<f32>();
+                    tile.add_sample(pos, glam::Vec3::splat(v));
+                }
+            }
+        }
+        let mut film = Film::new(w, h, filter);
+        film.merge(&tile);
+        film
+    };
+    for filter in [Filter::Gaussian { stddev: 1.0 }, Filter::DEFAULT] {
+        let mut chi2 = 0.0;
+        for _ in 0..trials {
+            let r = render(&mut rng, filter, 16);
+            let reference = Reference {
+                image: penumbra::io::exr::RgbImage {
+                    width: w,
+                    height: h,
+                    rgb: r.image(),
+                    variance: Some(r.sample_variance()),
+                    attributes: Default::default(),
+                },
+                spp: 16,
+                mitsuba_version: None,
+                variant: None,
+                render_seconds: None,
+            };
+            let ours = render(&mut rng, filter, 4);
+            let m = mean_check(
+                &ours.image(),
+                &ours.sample_variance(),
+                4.0,
+                &reference,
+                filter,
+            );
+            let c = m.channels[0];
+            chi2 += (c.diff() / c.se).powi(2);
+        }
+        let upper = penumbra::study::stats::chi2_sf(chi2, trials as f64);
+        let p = 2.0 * upper.min(1.0 - upper);
+        assert!(
+            p > alpha,
+            "{filter:?}: Σ z² = {chi2:.1} over {trials} trials (expected {trials}), p = {p:.2e}"
+        );
+    }
 }

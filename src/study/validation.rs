@@ -17,6 +17,7 @@
 //!    ([`crate::study::convergence::fit_slope`]).
 
 use crate::error::{Error, Result};
+use crate::film::Filter;
 use crate::io::exr::{self, RgbImage};
 use crate::sampler::{Sampler, SamplerKind};
 use crate::scene::Scene;
@@ -319,17 +320,46 @@ impl MeanCheck {
     }
 }
 
-/// Check 2 on an image with its per-sample variance at `spp`, against `reference`.
+/// Check 2 on an image with its per-sample variance at `spp`, against `reference`, both
+/// filtered by `filter`.
+///
+/// The standard error is that of the image mean, not of the pixels: a filter wider than a
+/// pixel spreads each sample over several pixels, so neighbouring pixels are correlated and
+/// summing their variances as if they were independent understates the mean's variance by
+/// the filter's variance factor K (about 1/π for Mitsuba's default gaussian, 1/(4π) for a
+/// gaussian of σ = 1 pixel). The image mean is, up to the edges, the plain mean of all
+/// samples, so its variance is Σ σᵢ² / (spp n²) with σᵢ² = varᵢ / Kᵢ the per-sample variance
+/// that pixel i's variance (its filtered estimate's, times spp) stands for; Kᵢ is
+/// [`Filter::variance_factor_1d`] in x times in y (the reference's variance is scaled by the
+/// same factor, validation/mitsuba/render_reference.py).
 pub fn mean_check(
     rgb: &[[f32; 3]],
     variance: &[[f32; 3]],
     spp: f64,
     reference: &Reference,
+    filter: Filter,
 ) -> MeanCheck {
     let (m_ours, m_ref) = (channel_means(rgb), channel_means(&reference.image.rgb));
     let n = rgb.len().max(1) as f64;
+    let (w, h) = (reference.image.width, reference.image.height);
+    let kx: Vec<f64> = (0..w).map(|x| filter.variance_factor_1d(x, w)).collect();
+    let ky: Vec<f64> = (0..h).map(|y| filter.variance_factor_1d(y, h)).collect();
+    let factor = |i: usize| {
+        let k = kx.get(i % w.max(1)).copied().unwrap_or(1.0)
+            * ky.get(i / w.max(1)).copied().unwrap_or(1.0);
+        if k > 0.0 {
+            k
+        } else {
+            1.0
+        }
+    };
     let var_of_mean = |v: &[[f32; 3]], spp: f64, c: usize| {
-        v.iter().map(|p| p[c] as f64).sum::<f64>() / spp / (n * n)
+        v.iter()
+            .enumerate()
+            .map(|(i, p)| p[c] as f64 / factor(i))
+            .sum::<f64>()
+            / spp
+            / (n * n)
     };
     let channels = std::array::from_fn(|c| ChannelMean {
         ours: m_ours[c],
@@ -476,7 +506,7 @@ pub fn study(
     let spp = ladder.steps.last().map_or(1, |st| st.spp) as f64;
     let (rgb, var) = (ladder.film.image(), ladder.film.sample_variance());
     let z = pixel_z_test(&rgb, &var, spp, reference)?;
-    let mean = mean_check(&rgb, &var, spp, reference);
+    let mean = mean_check(&rgb, &var, spp, reference, scene.filter);
     let slope = fit_slope(&ladder.rmse_points(), reference.noise_floor(), FLOOR_FACTOR);
     let slope_range = if scene.sampler.kind == SamplerKind::Independent {
         (-0.5 - SLOPE_TOLERANCE, -0.5 + SLOPE_TOLERANCE)
