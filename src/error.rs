@@ -42,6 +42,9 @@ pub enum Error {
     /// An input image (reference, environment map) could not be read.
     #[error("{}: cannot read image: {message}", path.display())]
     Image { path: PathBuf, message: String },
+    /// `PENUMBRA_LIMITS` (see [`crate::limits`]) is malformed.
+    #[error("PENUMBRA_LIMITS: {0}")]
+    Limits(String),
     /// Writing an output image failed.
     #[error("{}: cannot write image: {message}", path.display())]
     Output { path: PathBuf, message: String },

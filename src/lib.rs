@@ -16,6 +16,7 @@ pub mod film;
 pub mod geometry;
 pub mod integrator;
 pub mod io;
+pub mod limits;
 pub mod material;
 pub mod math;
 pub mod medium;

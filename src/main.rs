@@ -18,7 +18,11 @@ use std::time::Duration;
 #[command(
     name = "penumbra",
     version,
-    about = "A physically based path tracer for Mitsuba 3 scenes"
+    about = "A physically based path tracer for Mitsuba 3 scenes",
+    after_help = "Environment: PENUMBRA_LIMITS=name=value,... raises (or lowers) the limits on \
+                  input a large scene may exceed: render_pixels, image_pixels, image_bytes, \
+                  mesh_bytes, shape_bytes, vol_bytes, radiosity_rays (e.g. \
+                  PENUMBRA_LIMITS=render_pixels=2^28,mesh_bytes=32G; see docs/usage.md, Limits)."
 )]
 struct Cli {
     #[command(subcommand)]
@@ -1152,12 +1156,17 @@ fn run_report(args: ReportArgs) -> Result<()> {
 
 fn main() {
     let cli = Cli::parse();
-    let result = match cli.command {
-        Command::Render(args) => run_render(args),
-        Command::Merge(args) => run_merge(args),
-        Command::Compare(args) => run_compare(args),
-        Command::Converge(args) => run_converge(args),
-        Command::Report(args) => run_report(args),
+    // PENUMBRA_LIMITS is read once, here, before anything is loaded: a malformed value fails
+    // at once with one line (the loaders then use the same value).
+    let result = match penumbra::limits::current() {
+        Err(e) => Err(e.into()),
+        Ok(_) => match cli.command {
+            Command::Render(args) => run_render(args),
+            Command::Merge(args) => run_merge(args),
+            Command::Compare(args) => run_compare(args),
+            Command::Converge(args) => run_converge(args),
+            Command::Report(args) => run_report(args),
+        },
     };
     if let Err(e) = result {
         if let Some(i) = e.downcast_ref::<Interrupted>() {

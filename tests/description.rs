@@ -793,7 +793,10 @@ fn huge_pixel_counts_are_refused_before_allocating() {
     assert_error(
         &xml,
         "<film",
-        &["film of 65536x65536 pixels exceeds the limit of 67108864 pixels"],
+        &[
+            "film of 65536x65536 pixels exceeds the render_pixels limit of 67108864 pixels (raise \
+           it with PENUMBRA_LIMITS=render_pixels=...)",
+        ],
     );
 }
 

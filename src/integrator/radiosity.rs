@@ -55,11 +55,10 @@ use rayon::prelude::*;
 use std::f64::consts::PI as PI64;
 use std::sync::{Arc, RwLock};
 
-/// Form-factor rays a scene may ask for in all (2 sides × patches × `rays_per_patch`):
-/// 2^28, about a minute of ray casting here; the ladder's finest study (16,384 patches ×
-/// 1,024 rays × 2) casts 2^25. Refused when the scene is read if `patch_count` alone
-/// exceeds it, else once the patches are made.
-pub const MAX_RAYS: u64 = 1 << 28;
+// The form-factor rays a scene may ask for in all (2 sides × patches × `rays_per_patch`) are
+// the `radiosity_rays` limit of `crate::limits` (default 2^28, about a minute of ray casting
+// here; the ladder's finest study, 16,384 patches × 1,024 rays × 2, casts 2^25). Refused when
+// the scene is read if `patch_count` alone exceeds it, else once the patches are made.
 /// Geometric patches (cells) a scene may be divided into.
 pub const MAX_CELLS: u64 = 1 << 22;
 /// Shooting sweeps before giving up on the residual (reflectance 1 in a closed scene never
@@ -323,17 +322,22 @@ impl Layout {
             }
         }
         // Both sides may become patches.
-        if 2 * cells.len() as u64 * params.rays_per_patch as u64 > MAX_RAYS {
+        let limits = crate::limits::current()?;
+        let limit = crate::limits::Limit::RadiosityRays;
+        let rays = 2 * cells.len() as u64 * params.rays_per_patch as u64;
+        if rays > limits.radiosity_rays {
             let lower = if size > 0.0 {
                 "increase patch_size or lower rays_per_patch"
             } else {
                 "lower patch_count or rays_per_patch"
             };
             return Err(Error::Invalid(format!(
-                "radiosity: {} patches x 2 sides x {} rays_per_patch exceeds {MAX_RAYS} \
-                 form-factor rays ({lower})",
+                "radiosity: {} patches x 2 sides x {} rays_per_patch is {rays} form-factor \
+                 rays, more than {} ({lower}, or raise it with {})",
                 cells.len(),
-                params.rays_per_patch
+                params.rays_per_patch,
+                limit.of(limits.radiosity_rays),
+                limit.setting()
             )));
         }
         Ok(Layout { shapes, cells })

@@ -191,12 +191,16 @@ pub fn read(path: &Path) -> Result<RgbImage> {
 const EXPANSION_SLACK: u64 = 16 << 20;
 
 /// The checks made on the header before any pixel is allocated: a flat (not deep) first part
-/// of at most [`MAX_PIXELS`](crate::io::image::MAX_PIXELS) pixels, whose decoded samples a
+/// of at most `max_pixels` pixels (the `image_pixels` limit), whose decoded samples a
 /// file of `file_len` bytes can hold (at most
 /// [`MAX_EXPANSION`](crate::io::image::MAX_EXPANSION) decoded bytes per file byte), and no
 /// sub-sampled channel (their sample counts differ from the pixel count).
-fn check_header(header: &::exr::meta::header::Header, file_len: u64) -> Result<(), String> {
-    use crate::io::image::{MAX_EXPANSION, MAX_PIXELS};
+fn check_header(
+    header: &::exr::meta::header::Header,
+    file_len: u64,
+    max_pixels: u64,
+) -> Result<(), String> {
+    use crate::io::image::MAX_EXPANSION;
     if header.deep {
         return Err("deep OpenEXR images are not supported".into());
     }
@@ -213,9 +217,10 @@ fn check_header(header: &::exr::meta::header::Header, file_len: u64) -> Result<(
         return Err(format!("zero-sized image ({w} x {h})"));
     }
     let pixels = w.saturating_mul(h);
-    if pixels > MAX_PIXELS {
+    if pixels > max_pixels {
         return Err(format!(
-            "image of {w} x {h} pixels exceeds the limit of {MAX_PIXELS} pixels"
+            "image of {w} x {h} pixels exceeds {}",
+            crate::limits::Limit::ImagePixels.exceeded(max_pixels)
         ));
     }
     let bytes_per_pixel: u64 = header
@@ -238,8 +243,8 @@ fn check_header(header: &::exr::meta::header::Header, file_len: u64) -> Result<(
 }
 
 /// The first part of an EXR file as flat samples. The file is opened as every input is
-/// ([`crate::io::open_regular`]: a regular file of at most
-/// [`MAX_IMAGE_FILE_BYTES`](crate::io::image::MAX_IMAGE_FILE_BYTES)), its header checked
+/// ([`crate::io::open_regular`]: a regular file of at most the `image_bytes` limit of
+/// [`crate::limits`]), its header checked
 /// ([`check_header`]) before any pixel is allocated, and a panic inside the decoder on a
 /// malformed file becomes an error.
 fn read_flat(path: &Path) -> Result<Image<Layer<AnyChannels<FlatSamples>>>> {
@@ -248,11 +253,14 @@ fn read_flat(path: &Path) -> Result<Image<Layer<AnyChannels<FlatSamples>>>> {
         path: path.to_path_buf(),
         message,
     };
-    let (file, file_len) = crate::io::open_regular(path, crate::io::image::MAX_IMAGE_FILE_BYTES)
-        .map_err(|cause| Error::Io {
-            path: path.to_path_buf(),
-            cause,
-        })?;
+    let limits = crate::limits::current()?;
+    let (file, file_len) =
+        crate::io::open_regular(path, limits.file(crate::limits::Limit::ImageBytes)).map_err(
+            |cause| Error::Io {
+                path: path.to_path_buf(),
+                cause,
+            },
+        )?;
     let mut reader = std::io::BufReader::new(file);
     let meta = ::exr::meta::MetaData::read_from_buffered(&mut reader, false)
         .map_err(|e| in_err(format!("cannot read OpenEXR header: {e}")))?;
@@ -260,7 +268,7 @@ fn read_flat(path: &Path) -> Result<Image<Layer<AnyChannels<FlatSamples>>>> {
         .headers
         .first()
         .ok_or_else(|| in_err("EXR has no layer".into()))?;
-    check_header(header, file_len).map_err(in_err)?;
+    check_header(header, file_len, limits.image_pixels).map_err(in_err)?;
     let size = header.layer_size;
     reader.rewind().map_err(|cause| Error::Io {
         path: path.to_path_buf(),

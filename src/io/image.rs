@@ -23,7 +23,8 @@
 //!
 //! Hostile input: nothing here panics on any byte string (and a panic inside a decoder crate
 //! is caught and reported as an error); the header's dimensions are
-//! checked before any pixel buffer is allocated ([`MAX_PIXELS`], and a compression-ratio
+//! checked before any pixel buffer is allocated (the `image_pixels` limit of
+//! [`crate::limits`], and a compression-ratio
 //! bound: no supported codec expands a file more than [`MAX_EXPANSION`] times); every error
 //! is one line.
 
@@ -31,11 +32,8 @@ use half::f16;
 use std::io::Cursor;
 use std::path::Path;
 
-/// Largest image accepted: 2^28 pixels (16384²; the largest textures in use, e.g. NASA's
-/// 21600 x 10800 Blue Marble, stay below). At 3 half-float channels that is 1.5 GiB.
-pub const MAX_PIXELS: u64 = 1 << 28;
-/// Largest image file read (4 GiB: a 16384² RGB float EXR, uncompressed, is 3 GiB).
-pub const MAX_IMAGE_FILE_BYTES: u64 = 1 << 32;
+// The largest image accepted (pixels) and image file read (bytes) are the `image_pixels`
+// and `image_bytes` limits of `crate::limits` (default 2^28 pixels and 4 GiB).
 /// Upper bound on decoded bytes per file byte. Deflate (PNG, EXR ZIP) expands at most 1032
 /// times; baseline and progressive Huffman JPEG need at least one bit per 8x8 block and
 /// component (≤ 1365 times with 4:1:0 chroma subsampling); EXR RLE ≤ 64, PIZ ≤ ~400,
@@ -139,16 +137,20 @@ pub struct Image {
     pub layout: Layout,
 }
 
-/// Reads an image file (format detected from its first bytes).
+/// Reads an image file (format detected from its first bytes) of at most the `image_bytes`
+/// limit and `image_pixels` pixels ([`crate::limits::current`]).
 pub fn read(path: &Path) -> Result<Image, String> {
-    let bytes = crate::io::read_file_limited(path, MAX_IMAGE_FILE_BYTES)
+    let limits = crate::limits::current().map_err(|e| e.to_string())?;
+    let bytes = crate::io::read_file_limited(path, limits.file(crate::limits::Limit::ImageBytes))
         .map_err(|e| format!("{}: {e}", path.display()))?;
-    decode(&bytes).map_err(|e| format!("{}: {e}", path.display()))
+    decode_limited(&bytes, limits.image_pixels).map_err(|e| format!("{}: {e}", path.display()))
 }
 
-/// Decodes an image held in memory, at most [`MAX_PIXELS`] pixels.
+/// Decodes an image held in memory, at most the `image_pixels` limit's pixels
+/// ([`crate::limits::current`]).
 pub fn decode(bytes: &[u8]) -> Result<Image, String> {
-    decode_limited(bytes, MAX_PIXELS)
+    let limits = crate::limits::current().map_err(|e| e.to_string())?;
+    decode_limited(bytes, limits.image_pixels)
 }
 
 /// Decodes an image held in memory, refusing more than `max_pixels` pixels before
@@ -220,7 +222,8 @@ fn check_size(
     let pixels = width.saturating_mul(height);
     if pixels > max_pixels {
         return Err(format!(
-            "image of {width} x {height} pixels exceeds the limit of {max_pixels} pixels"
+            "image of {width} x {height} pixels exceeds {}",
+            crate::limits::Limit::ImagePixels.exceeded(max_pixels)
         ));
     }
     let decoded = pixels.saturating_mul(bits_per_pixel).div_ceil(8);
@@ -952,17 +955,19 @@ mod tests {
 
     #[test]
     fn absurd_dimensions_are_refused_before_allocating() {
+        const ABOVE: &str = "exceeds the image_pixels limit of 268435456 pixels (raise it with \
+                             PENUMBRA_LIMITS=image_pixels=...)";
         let big = 1u32 << 20;
         let e = err(&png_header(big, big, &[]));
-        assert!(e.contains("exceeds the limit"), "{e}");
+        assert!(e.contains(ABOVE), "{e}");
         let e = err(&bmp(big as i32, big as i32, 24, 0, &[]));
-        assert!(e.contains("exceeds the limit"), "{e}");
+        assert!(e.contains(ABOVE), "{e}");
         let jpeg = [
             0xFF, 0xD8, 0xFF, 0xC0, 0, 11, 8, 0xFF, 0xFF, 0xFF, 0xFF, 1, 1, 0x11, 0, 0xFF, 0xDA, 0,
             2, 0xFF, 0xD9,
         ];
         let e = err(&jpeg);
-        assert!(e.contains("exceeds the limit"), "{e}");
+        assert!(e.contains(ABOVE), "{e}");
         // allowed pixel count, but far more than the file can hold
         let e = err(&png_header(8192, 8192, &[]));
         assert!(e.contains("more than a"), "{e}");
@@ -974,7 +979,7 @@ mod tests {
         let at = e.windows(key.len()).position(|w| w == key).unwrap() + key.len() + 4;
         e[at + 8..at + 16].copy_from_slice(&[0xFF, 0xFF, 0x0F, 0, 0xFF, 0xFF, 0x0F, 0]);
         let msg = err(&e);
-        assert!(msg.contains("exceeds the limit"), "{msg}");
+        assert!(msg.contains(ABOVE), "{msg}");
         // a smaller limit, as the fuzz target uses
         assert!(decode_limited(&file("rgb.jpg"), 100).is_err());
         assert!(decode_limited(&file("rgb.jpg"), 192).is_ok());

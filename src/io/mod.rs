@@ -19,22 +19,32 @@ use std::io::Read;
 use std::path::Path;
 
 /// Largest scene file read (XML, including included files, and `.spd` spectrum files).
+/// Fixed: it guards against hostile files, not real scenes (the other file limits are
+/// [`crate::limits`]'s).
 pub const MAX_SCENE_FILE_BYTES: u64 = 1 << 28;
-/// Largest mesh file read.
-pub const MAX_MESH_FILE_BYTES: u64 = 1 << 33;
-/// Largest file any loader reads (the largest of [`MAX_SCENE_FILE_BYTES`],
-/// [`MAX_MESH_FILE_BYTES`], [`image::MAX_IMAGE_FILE_BYTES`] and [`vol::MAX_VOL_FILE_BYTES`]):
-/// what the scene's identity hash (`progressive::scene_hash`) reads of a file at most.
-pub const MAX_INPUT_FILE_BYTES: u64 = max(
-    max(MAX_SCENE_FILE_BYTES, MAX_MESH_FILE_BYTES),
-    max(image::MAX_IMAGE_FILE_BYTES, vol::MAX_VOL_FILE_BYTES),
-);
 
-const fn max(a: u64, b: u64) -> u64 {
-    if a > b {
-        a
-    } else {
-        b
+/// A bound on a file's size: its bytes and, for the limits `PENUMBRA_LIMITS` sets (see
+/// [`crate::limits`]), which one, so that the message refusing a larger file says how to
+/// raise it. A fixed limit converts from its bytes.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct FileLimit {
+    pub bytes: u64,
+    pub limit: Option<crate::limits::Limit>,
+}
+
+impl From<u64> for FileLimit {
+    fn from(bytes: u64) -> Self {
+        FileLimit { bytes, limit: None }
+    }
+}
+
+impl FileLimit {
+    /// `the limit of N bytes`, or `the mesh_bytes limit of 8 GiB (raise it with ...)`.
+    fn describe(&self) -> String {
+        match self.limit {
+            None => format!("the limit of {} bytes", self.bytes),
+            Some(limit) => limit.exceeded(self.bytes),
+        }
     }
 }
 
@@ -66,9 +76,11 @@ fn not_regular(kind: std::fs::FileType) -> std::io::Error {
 
 /// Opens a regular file of at most `limit` bytes and returns it with its size. Anything
 /// else (a device, a FIFO, a socket, a directory) and a larger file are refused with an
-/// error saying which. The type is checked before the file is opened, so that a FIFO's open
-/// cannot block waiting for a writer, and again on the opened file.
-pub fn open_regular(path: &Path, limit: u64) -> std::io::Result<(File, u64)> {
+/// error saying which (and, for a named limit, how to raise it). The type is checked before
+/// the file is opened, so that a FIFO's open cannot block waiting for a writer, and again on
+/// the opened file.
+pub fn open_regular(path: &Path, limit: impl Into<FileLimit>) -> std::io::Result<(File, u64)> {
+    let limit = limit.into();
     let meta = std::fs::metadata(path)?;
     if !meta.is_file() {
         return Err(not_regular(meta.file_type()));
@@ -78,27 +90,35 @@ pub fn open_regular(path: &Path, limit: u64) -> std::io::Result<(File, u64)> {
     if !meta.is_file() {
         return Err(not_regular(meta.file_type()));
     }
-    if meta.len() > limit {
+    if meta.len() > limit.bytes {
         return Err(std::io::Error::other(format!(
-            "file of {} bytes exceeds the limit of {limit} bytes",
-            meta.len()
+            "file of {} bytes exceeds {}",
+            meta.len(),
+            limit.describe()
         )));
     }
     Ok((file, meta.len()))
 }
 
-fn grew_past(limit: u64) -> std::io::Error {
-    std::io::Error::other(format!("file exceeds the limit of {limit} bytes"))
+fn grew_past(limit: &FileLimit) -> std::io::Error {
+    std::io::Error::other(format!("file exceeds {}", limit.describe()))
 }
 
 /// Reads a whole regular file of at most `limit` bytes ([`open_regular`]'s checks; a file
 /// that grows past the limit while being read is refused too).
-pub fn read_file_limited(path: &Path, limit: u64) -> std::io::Result<Vec<u8>> {
+pub fn read_file_limited(path: &Path, limit: impl Into<FileLimit>) -> std::io::Result<Vec<u8>> {
+    let limit = limit.into();
     let (file, len) = open_regular(path, limit)?;
-    let mut bytes = Vec::with_capacity(len as usize);
-    file.take(limit + 1).read_to_end(&mut bytes)?;
-    if bytes.len() as u64 > limit {
-        return Err(grew_past(limit));
+    let mut bytes = Vec::new();
+    bytes
+        .try_reserve_exact(usize::try_from(len).unwrap_or(usize::MAX))
+        .map_err(|_| {
+            std::io::Error::other(format!("cannot allocate {len} bytes to read the file"))
+        })?;
+    file.take(limit.bytes.saturating_add(1))
+        .read_to_end(&mut bytes)?;
+    if bytes.len() as u64 > limit.bytes {
+        return Err(grew_past(&limit));
     }
     Ok(bytes)
 }
@@ -108,11 +128,12 @@ pub fn read_file_limited(path: &Path, limit: u64) -> std::io::Result<Vec<u8>> {
 /// number of bytes read.
 pub fn read_file_chunks(
     path: &Path,
-    limit: u64,
+    limit: impl Into<FileLimit>,
     mut consume: impl FnMut(&[u8]),
 ) -> std::io::Result<u64> {
+    let limit = limit.into();
     let (file, _) = open_regular(path, limit)?;
-    let mut reader = file.take(limit + 1);
+    let mut reader = file.take(limit.bytes.saturating_add(1));
     let mut buf = vec![0u8; 1 << 16];
     let mut total = 0u64;
     loop {
@@ -123,8 +144,8 @@ pub fn read_file_chunks(
             Err(e) => return Err(e),
         };
         total += n as u64;
-        if total > limit {
-            return Err(grew_past(limit));
+        if total > limit.bytes {
+            return Err(grew_past(&limit));
         }
         consume(&buf[..n]);
     }
@@ -157,6 +178,21 @@ mod tests {
             assert_eq!(
                 e.to_string(),
                 "file of 200000 bytes exceeds the limit of 199999 bytes"
+            );
+        }
+        // a limit PENUMBRA_LIMITS sets says so
+        let named = FileLimit {
+            bytes: 199_999,
+            limit: Some(crate::limits::Limit::MeshBytes),
+        };
+        for e in [
+            read_file_limited(&path, named).unwrap_err(),
+            read_file_chunks(&path, named, |_| panic!("read past the limit")).unwrap_err(),
+        ] {
+            assert_eq!(
+                e.to_string(),
+                "file of 200000 bytes exceeds the mesh_bytes limit of 199999 bytes (raise it \
+                 with PENUMBRA_LIMITS=mesh_bytes=...)"
             );
         }
         std::fs::remove_dir_all(&dir).ok();

@@ -41,7 +41,8 @@
 //!   `shape_index == count` through; it then fails reading version 4 and takes the count
 //!   for an offset in version 3).
 //! - Hostile input: never panics, no recursion. Before anything is inflated, the bytes the
-//!   counts and flags ask for are checked against [`MAX_SHAPE_BYTES`] and against what the
+//!   counts and flags ask for are checked against the `shape_bytes` limit of
+//!   [`crate::limits`] (default 8 GiB, as a mesh file) and against what the
 //!   compressed bytes can hold ([`MAX_ZLIB_EXPANSION`], deflate's 1032:1), so a
 //!   decompression bomb is refused at once; then exactly those bytes are inflated (never
 //!   more), collected as they arrive (nothing is allocated from a header count), and a short
@@ -57,8 +58,6 @@ const HAS_COLORS: u32 = 0x0008;
 const DOUBLE_PRECISION: u32 = 0x2000;
 /// Longest shape name read (a guard against a name that never ends).
 const MAX_NAME_BYTES: usize = 1 << 16;
-/// Largest decompressed shape: as large as the largest (uncompressed) mesh file read.
-pub const MAX_SHAPE_BYTES: u64 = super::MAX_MESH_FILE_BYTES;
 /// Most bytes one compressed byte can inflate to: deflate's maximum ratio (a 258-byte match
 /// in two bits) is 1032:1.
 pub const MAX_ZLIB_EXPANSION: u64 = 1032;
@@ -179,7 +178,7 @@ pub fn read_serialized_shape(bytes: &[u8], shape_index: usize) -> Result<Seriali
 }
 
 /// Checks, before anything is inflated, that the bytes the header's counts and flags ask for
-/// are at most [`MAX_SHAPE_BYTES`] and can come out of the `compressed` bytes from the
+/// are at most the `shape_bytes` limit and can come out of the `compressed` bytes from the
 /// shape's start to the end of the file ([`MAX_ZLIB_EXPANSION`]): a decompression bomb whose
 /// counts claim more than its stream can hold is refused here, not after inflating it.
 fn check_shape_size(
@@ -198,10 +197,12 @@ fn check_shape_size(
     let needed = vertices
         .saturating_mul(per_vertex)
         .saturating_add(faces.saturating_mul(12));
-    if needed > MAX_SHAPE_BYTES {
+    let limits = crate::limits::current().map_err(|e| e.to_string())?;
+    if needed > limits.shape_bytes {
         return Err(format!(
-            "{vertices} vertices and {faces} triangles need {needed} bytes, more than the \
-             limit of {MAX_SHAPE_BYTES} bytes of mesh data"
+            "{vertices} vertices and {faces} triangles need {needed} bytes of mesh data, more \
+             than {}",
+            limits.exceeded(crate::limits::Limit::ShapeBytes)
         ));
     }
     let bound = (compressed as u64)

@@ -21,8 +21,7 @@ use std::path::Path;
 
 /// Size of the fixed header.
 pub const HEADER_BYTES: usize = 48;
-/// Largest `.vol` file read.
-pub const MAX_VOL_FILE_BYTES: u64 = 1 << 33;
+// The largest `.vol` file read is the `vol_bytes` limit of `crate::limits` (default 8 GiB).
 
 /// A dense grid of `channels`-vectors of f32, as stored in a `.vol` file.
 #[derive(Clone, Debug, PartialEq)]
@@ -125,9 +124,11 @@ pub fn parse_vol(bytes: &[u8]) -> Result<VolData, String> {
     })
 }
 
-/// Reads and parses a `.vol` file; errors are one line and name the file.
+/// Reads and parses a `.vol` file of at most the `vol_bytes` limit
+/// ([`crate::limits::current`]); errors are one line and name the file.
 pub fn read_vol(path: &Path) -> Result<VolData, String> {
-    let bytes = super::read_file_limited(path, MAX_VOL_FILE_BYTES)
+    let limits = crate::limits::current().map_err(|e| e.to_string())?;
+    let bytes = super::read_file_limited(path, limits.file(crate::limits::Limit::VolBytes))
         .map_err(|e| format!("{}: {e}", path.display()))?;
     parse_vol(&bytes).map_err(|e| format!("{}: {e}", path.display()))
 }

@@ -66,12 +66,11 @@ pub fn load_mesh(
     options: &MeshOptions,
     warnings: &mut Vec<String>,
 ) -> Result<Mesh> {
-    let bytes =
-        crate::io::read_file_limited(path, crate::io::MAX_MESH_FILE_BYTES).map_err(|cause| {
-            Error::Io {
-                path: path.to_path_buf(),
-                cause,
-            }
+    let limits = crate::limits::current()?;
+    let bytes = crate::io::read_file_limited(path, limits.file(crate::limits::Limit::MeshBytes))
+        .map_err(|cause| Error::Io {
+            path: path.to_path_buf(),
+            cause,
         })?;
     mesh_from_bytes(&bytes, path, format, options, warnings)
 }

@@ -438,16 +438,19 @@ pub(super) fn integrator_desc(o: &Object) -> Result<(IntegratorDesc, bool, Optio
             }
             // Every patch has two sides that may become patches of the solution, each
             // casting rays_per_patch rays; meshing gives at least patch_count patches, so
-            // the layout's own check (radiosity::MAX_RAYS) would refuse this product too,
-            // after loading the whole scene.
+            // the layout's own check (the radiosity_rays limit) would refuse this product
+            // too, after loading the whole scene.
             let rays = 2 * patch_count as u64 * rays_per_patch as u64;
-            if patch_size == 0.0 && rays > crate::integrator::radiosity::MAX_RAYS {
+            let limits = crate::limits::current()?;
+            let limit = crate::limits::Limit::RadiosityRays;
+            if patch_size == 0.0 && rays > limits.radiosity_rays {
                 return bad(format!(
                     "patch_count ({patch_count}) x 2 sides x rays_per_patch ({rays_per_patch}) \
-                     of {} is {rays} form-factor rays, more than the limit of {} (lower \
-                     patch_count or rays_per_patch)",
+                     of {} is {rays} form-factor rays, more than {} (lower patch_count or \
+                     rays_per_patch, or raise it with {})",
                     describe(o),
-                    crate::integrator::radiosity::MAX_RAYS
+                    limit.of(limits.radiosity_rays),
+                    limit.setting()
                 ));
             }
             if !(residual > 0.0 && residual < 1.0) {

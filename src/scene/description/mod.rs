@@ -128,10 +128,9 @@ impl SceneDescription {
 pub const NO_INTEGRATOR_WARNING: &str =
     "the scene has no <integrator>: rendering with path (max_depth -1, rr_depth 5); Mitsuba's mi.render needs one passed in";
 
-/// Largest image side accepted; larger ones are refused before allocating anything.
+/// Largest image side accepted; larger ones are refused before allocating anything. (The
+/// largest pixel count is the `render_pixels` limit of [`crate::limits`].)
 pub const MAX_RESOLUTION: u32 = 1 << 16;
-/// Largest pixel count accepted (8192², whose f64 film takes 3.8 GB).
-pub const MAX_PIXELS: u64 = 1 << 26;
 
 /// `<tag type="plugin">` for messages.
 pub(super) fn describe(o: &Object) -> String {

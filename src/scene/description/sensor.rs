@@ -368,11 +368,13 @@ pub(super) fn film_desc(cx: &Ctx, o: &Object) -> Result<FilmDesc> {
         ));
     }
     // What is rendered and held in memory is the crop window.
-    if crop_width as u64 * crop_height as u64 > MAX_PIXELS {
+    let limits = crate::limits::current()?;
+    if crop_width as u64 * crop_height as u64 > limits.render_pixels {
         return Err(Error::scene(
             &o.location,
             format!(
-                "film of {crop_width}x{crop_height} pixels exceeds the limit of {MAX_PIXELS} pixels"
+                "film of {crop_width}x{crop_height} pixels exceeds {}",
+                limits.exceeded(crate::limits::Limit::RenderPixels)
             ),
         ));
     }
