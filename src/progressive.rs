@@ -361,16 +361,20 @@ pub fn fnv1a(bytes: &[u8], mut h: u64) -> u64 {
 }
 
 /// Identity of a scene for checkpoints: its typed description (every parameter, after
-/// defaults and -D overrides) and the bytes of every file it loads (meshes, grids, images).
+/// defaults and -D overrides) and the bytes of every file it loads (meshes, grids, images),
+/// each read up to the largest file any loader reads under the limits in effect
+/// ([`crate::limits::Limits::input_file_bytes`]; the defaults' if `PENUMBRA_LIMITS` is
+/// malformed, which the loaders refuse).
 pub fn scene_hash(desc: &crate::scene::description::SceneDescription) -> u64 {
+    let bound = crate::limits::current()
+        .unwrap_or_default()
+        .input_file_bytes();
     let mut h = fnv1a(format!("{desc:?}").as_bytes(), 0xcbf2_9ce4_8422_2325);
     for path in desc.files() {
         // Streamed, and bounded as the loaders are: a device, a FIFO, a directory or a file
         // larger than any loader reads is left out here (its loader then refuses it).
         let mut file_h = h;
-        let read = crate::io::read_file_chunks(path, crate::io::MAX_INPUT_FILE_BYTES, |chunk| {
-            file_h = fnv1a(chunk, file_h)
-        });
+        let read = crate::io::read_file_chunks(path, bound, |chunk| file_h = fnv1a(chunk, file_h));
         if read.is_ok() {
             h = file_h;
         }
@@ -498,10 +502,15 @@ fn parse_header(bytes: &[u8], path: &Path) -> Result<(CheckpointHeader, usize)> 
     let (scene_hash, seed, first_sample, samples, plan_spp) = (u()?, u()?, u()?, u()?, u()?);
     let plan_start = u()?;
     let (width, height, film_samples) = (u()?, u()?, u()?);
-    width
-        .checked_mul(height)
-        .filter(|&n| n <= crate::scene::description::MAX_PIXELS)
-        .ok_or_else(|| bad("resolution"))?;
+    let pixels = width.checked_mul(height).ok_or_else(|| bad("resolution"))?;
+    let limits = crate::limits::current()?;
+    if pixels > limits.render_pixels {
+        return Err(Error::Invalid(format!(
+            "{}: the checkpoint or part file's resolution of {width}x{height} pixels exceeds {}",
+            path.display(),
+            limits.exceeded(crate::limits::Limit::RenderPixels)
+        )));
+    }
     let mut u = || r.u32().ok_or_else(|| bad("truncated"));
     let (pass_spp, sampler_points, part_i, part_n, filter_kind) = (u()?, u()?, u()?, u()?, u()?);
     let filter_param = r.f64().ok_or_else(|| bad("truncated"))?;
@@ -730,12 +739,12 @@ impl Checkpoint {
     /// Reads a checkpoint or part file written by [`Checkpoint::write`] (or by the previous
     /// format, `PNBRCKP4`, converted exactly).
     pub fn read(path: &Path) -> Result<Self> {
-        let mut bytes = Vec::new();
-        std::fs::File::open(path)
-            .and_then(|mut f| f.read_to_end(&mut bytes))
-            .map_err(|cause| Error::Io {
-                path: path.to_path_buf(),
-                cause,
+        let bytes =
+            crate::io::read_file_limited(path, checkpoint_file_limit()?).map_err(|cause| {
+                Error::Io {
+                    path: path.to_path_buf(),
+                    cause,
+                }
             })?;
         Self::parse(&bytes, path)
     }
@@ -748,8 +757,7 @@ impl Checkpoint {
             path: path.to_path_buf(),
             cause,
         };
-        let f = std::fs::File::open(path).map_err(io)?;
-        let len = f.metadata().map_err(io)?.len();
+        let (f, len) = crate::io::open_regular(path, checkpoint_file_limit()?).map_err(io)?;
         let mut prefix = Vec::new();
         f.take((8 + HEADER_FIXED_BYTES + MAX_VERSION_BYTES) as u64)
             .read_to_end(&mut prefix)
@@ -1412,4 +1420,16 @@ impl Reader<'_> {
     fn f64(&mut self) -> Option<f64> {
         Some(f64::from_le_bytes(self.take(8)?.try_into().ok()?))
     }
+}
+
+/// The largest checkpoint or part file read: its film at the `render_pixels` limit, 18 bytes
+/// per value, plus room for spilled values (an exact sum over f64's whole range takes at
+/// most 2,100 bits, 272 bytes with its key): a bound before allocating, and special files
+/// (a checkpoint path at /dev/zero, a FIFO) are refused by [`crate::io::open_regular`].
+fn checkpoint_file_limit() -> Result<u64> {
+    let pixels = crate::limits::current()?.render_pixels;
+    Ok(pixels
+        .saturating_mul(EXACT_VALUES as u64)
+        .saturating_mul(18 + 272)
+        .saturating_add(1 << 20))
 }

@@ -85,6 +85,8 @@ fn one_error_line(code: i32, stderr: &str, parts: &[&str]) -> String {
     for part in parts {
         assert!(line.contains(part), "expected {part:?} in: {line}");
     }
+    // What penumbra says, for `cargo test --test hostile_files -- --nocapture`.
+    eprintln!("penumbra said: {line}");
     line.to_string()
 }
 
@@ -164,6 +166,38 @@ fn a_mesh_that_is_a_fifo_is_refused_without_blocking() {
     );
 }
 
+/// Checkpoint and part files are read as bounded regular files too: `merge` of a part that
+/// is /dev/zero or a FIFO (which used to read forever, or wait forever for a writer).
+#[cfg(unix)]
+#[test]
+fn a_part_file_that_is_dev_zero_or_a_fifo_is_refused_without_blocking() {
+    let dir = TempDir::new("part-special");
+    let fifo = dir.path("part.pnbr");
+    match Command::new("mkfifo").arg(&fifo).status() {
+        Ok(s) => assert!(s.success(), "mkfifo failed"),
+        Err(_) => {
+            eprintln!("mkfifo is not installed: skipped");
+            return;
+        }
+    }
+    let out = dir.path("merged.exr");
+    for (part, what) in [
+        (Path::new("/dev/zero"), "a device"),
+        (fifo.as_path(), "a FIFO"),
+    ] {
+        let args = [
+            "merge".as_ref(),
+            part.as_os_str(),
+            "-o".as_ref(),
+            out.as_os_str(),
+        ];
+        let (code, stderr) = penumbra_within(&dir, &args, Duration::from_secs(10));
+        let line = one_error_line(code, &stderr, &[&format!("is {what}, not a regular file")]);
+        assert!(line.contains(&part.display().to_string()), "{line}");
+        assert!(!out.exists(), "an image was written for a failed merge");
+    }
+}
+
 // ---------------------------------------------------------------------------------------
 // 2. OpenEXR input (references, `compare`, `report`): size and layout checked first
 // ---------------------------------------------------------------------------------------
@@ -219,8 +253,9 @@ fn an_exr_whose_data_window_is_huge_is_refused_before_allocating() {
     assert_eq!(
         line,
         format!(
-            "error: {}: cannot read image: image of 65536 x 65536 pixels exceeds the limit of \
-             268435456 pixels",
+            "error: {}: cannot read image: image of 65536 x 65536 pixels exceeds the \
+             image_pixels limit of 268435456 pixels (raise it with \
+             PENUMBRA_LIMITS=image_pixels=...)",
             path.display()
         )
     );
@@ -453,7 +488,8 @@ fn a_serialized_decompression_bomb_is_refused_before_inflating() {
     assert!(
         line.ends_with(
             "cannot load mesh: shape 0: 4294967295 vertices and 4294967295 triangles need \
-             326417514420 bytes, more than the limit of 8589934592 bytes of mesh data"
+             326417514420 bytes of mesh data, more than the shape_bytes limit of 8 GiB (raise \
+             it with PENUMBRA_LIMITS=shape_bytes=...)"
         ),
         "{line}"
     );
@@ -487,8 +523,9 @@ fn radiosity_form_factor_rays_are_bounded_when_the_scene_is_read() {
     assert!(
         e.ends_with(
             "patch_count (131073) x 2 sides x rays_per_patch (1024) of <integrator \
-             type=\"radiosity\"> is 268437504 form-factor rays, more than the limit of \
-             268435456 (lower patch_count or rays_per_patch)"
+             type=\"radiosity\"> is 268437504 form-factor rays, more than the radiosity_rays \
+             limit of 268435456 rays (lower patch_count or rays_per_patch, or raise it with \
+             PENUMBRA_LIMITS=radiosity_rays=...)"
         ),
         "{e}"
     );
@@ -538,7 +575,9 @@ fn radiosity_with_a_patch_size_is_bounded_once_the_patches_are_made() {
     let line = render_refused(&dir, &xml, Duration::from_secs(10), &[]);
     assert_eq!(
         line,
-        "error: radiosity: 160178 patches x 2 sides x 1048576 rays_per_patch exceeds 268435456 \
-         form-factor rays (increase patch_size or lower rays_per_patch)"
+        "error: radiosity: 160178 patches x 2 sides x 1048576 rays_per_patch is 335917613056 \
+         form-factor rays, more than the radiosity_rays limit of 268435456 rays (increase \
+         patch_size or lower rays_per_patch, or raise it with \
+         PENUMBRA_LIMITS=radiosity_rays=...)"
     );
 }
