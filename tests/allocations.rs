@@ -46,7 +46,11 @@ fn allocations_of_render(scene: &penumbra::scene::Scene, spp: u32) -> u64 {
     let before = ALLOCATIONS.load(Ordering::Relaxed);
     let out = common::render_scene(scene, spp, 3, Some(1));
     let after = ALLOCATIONS.load(Ordering::Relaxed);
-    assert_eq!(out.stats.paths, 16 * 16 * spp as u64);
+    // The pixels sampled: the film (16², or a scene's fixed crop window) and, with
+    // sample_border, the border of the filter's reach around it.
+    let b = scene.sample_border;
+    let sampled = (scene.width + 2 * b) * (scene.height + 2 * b);
+    assert_eq!(out.stats.paths, sampled as u64 * spp as u64);
     after - before
 }
 
