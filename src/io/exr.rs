@@ -187,20 +187,17 @@ pub fn read(path: &Path) -> Result<RgbImage> {
     })
 }
 
-/// Decoded bytes always allowed whatever the file's size (as for texture images).
-const EXPANSION_SLACK: u64 = 16 << 20;
-
 /// The checks made on the header before any pixel is allocated: a flat (not deep) first part
 /// of at most `max_pixels` pixels (the `image_pixels` limit), whose decoded samples a
 /// file of `file_len` bytes can hold (at most
 /// [`MAX_EXPANSION`](crate::io::image::MAX_EXPANSION) decoded bytes per file byte), and no
-/// sub-sampled channel (their sample counts differ from the pixel count).
+/// sub-sampled channel (their sample counts differ from the pixel count). The size checks
+/// are the texture images' ([`crate::io::image::check_size`]).
 fn check_header(
     header: &::exr::meta::header::Header,
     file_len: u64,
     max_pixels: u64,
 ) -> Result<(), String> {
-    use crate::io::image::MAX_EXPANSION;
     if header.deep {
         return Err("deep OpenEXR images are not supported".into());
     }
@@ -213,33 +210,19 @@ fn check_header(
         return Err("sub-sampled OpenEXR channels are not supported".into());
     }
     let (w, h) = (header.layer_size.0 as u64, header.layer_size.1 as u64);
-    if w == 0 || h == 0 {
-        return Err(format!("zero-sized image ({w} x {h})"));
-    }
-    let pixels = w.saturating_mul(h);
-    if pixels > max_pixels {
-        return Err(format!(
-            "image of {w} x {h} pixels exceeds {}",
-            crate::limits::Limit::ImagePixels.exceeded(max_pixels)
-        ));
-    }
-    let bytes_per_pixel: u64 = header
+    let bits_per_pixel: u64 = header
         .channels
         .list
         .iter()
-        .map(|c| c.sample_type.bytes_per_sample() as u64)
+        .map(|c| 8 * c.sample_type.bytes_per_sample() as u64)
         .sum();
-    let decoded = pixels.saturating_mul(bytes_per_pixel);
-    if decoded
-        > file_len
-            .saturating_mul(MAX_EXPANSION)
-            .saturating_add(EXPANSION_SLACK)
-    {
-        return Err(format!(
-            "header claims {w} x {h} pixels, more than a {file_len}-byte file can hold"
-        ));
-    }
-    Ok(())
+    crate::io::image::check_size(
+        w,
+        h,
+        bits_per_pixel,
+        usize::try_from(file_len).unwrap_or(usize::MAX),
+        max_pixels,
+    )
 }
 
 /// The first part of an EXR file as flat samples. The file is opened as every input is

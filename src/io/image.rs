@@ -209,7 +209,7 @@ pub fn detect(bytes: &[u8]) -> Result<FileFormat, String> {
 /// Refuses zero-sized images and headers claiming more pixels than allowed or than the
 /// file can hold: `bits_per_pixel` as stored in the file before compression (0: skip the
 /// file-size check).
-fn check_size(
+pub(crate) fn check_size(
     width: u64,
     height: u64,
     bits_per_pixel: u64,
