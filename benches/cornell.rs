@@ -3,13 +3,13 @@
 //! elements (camera paths) per second.
 
 use criterion::{criterion_group, criterion_main, Criterion, Throughput};
-use penumbra::render::{render, RenderSettings};
-use penumbra::scene::Scene;
+use penumbra::render::Job;
+use penumbra::render::RenderSettings;
 use std::path::Path;
 
 fn cornell(c: &mut Criterion) {
     let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes/cornell-box.xml");
-    let scene = Scene::load(&path, &[("res".into(), "64".into())]).expect("scene loads");
+    let scene = Job::load(&path, &[("res".into(), "64".into())]).expect("scene loads");
     let spp = 4;
     let settings = RenderSettings {
         spp,
@@ -20,11 +20,11 @@ fn cornell(c: &mut Criterion) {
     };
     let mut group = c.benchmark_group("cornell-box");
     group.throughput(Throughput::Elements(
-        (scene.width * scene.height) as u64 * spp as u64,
+        (scene.scene.width * scene.scene.height) as u64 * spp as u64,
     ));
     group.sample_size(20);
     group.bench_function("render 64x64 4spp", |b| {
-        b.iter(|| render(&scene, &settings, &|_, _| {}).expect("render"))
+        b.iter(|| scene.render(&settings, &|_, _| {}).expect("render"))
     });
     group.finish();
 }

@@ -5,6 +5,7 @@ use clap::{Parser, Subcommand};
 use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
 use penumbra::io::exr::{self, Attribute, RgbImage};
 use penumbra::progressive;
+use penumbra::render::Job;
 use penumbra::scene::Scene;
 use penumbra::study::compare;
 use std::collections::BTreeMap;
@@ -411,11 +412,11 @@ fn run_render(args: RenderArgs) -> Result<()> {
         }
         (None, None) => None,
     };
-    let mut scene = penumbra::scene::build::build(&desc)?;
     if let Some(kind) = &args.integrator {
-        scene.use_integrator(kind)?;
+        desc.use_integrator(kind)?;
     }
-    for w in &scene.warnings {
+    let mut job = Job::build(&desc)?;
+    for w in &job.scene.warnings {
         eprintln!("warning: {w}");
     }
     if args.spp == Some(0) {
@@ -426,7 +427,7 @@ fn run_render(args: RenderArgs) -> Result<()> {
             bail!("--target-rel-error must be a positive number, got {t}");
         }
     }
-    let seed = args.seed.unwrap_or(scene.seed);
+    let seed = args.seed.unwrap_or(job.scene.seed);
     let checkpointing = checkpointing_asked.then(|| progressive::Checkpointing {
         path: checkpoint_path.clone(),
         every: args.checkpoint_every.unwrap_or(Duration::from_secs(300)),
@@ -441,17 +442,17 @@ fn run_render(args: RenderArgs) -> Result<()> {
     // samples continue the same passes (a resumed part has its plan's, which it checks).
     let spp = match (&resume, args.spp) {
         (Some(checkpoint), spp) if args.part.is_none() => {
-            scene.sampler.sample_count = checkpoint.sampler_points;
-            spp.unwrap_or(scene.sample_count)
+            job.scene.sampler.sample_count = checkpoint.sampler_points;
+            spp.unwrap_or(job.scene.sample_count)
         }
         (_, Some(spp)) => {
-            let (rounded, warning) = scene.set_sample_count(spp);
+            let (rounded, warning) = job.scene.set_sample_count(spp);
             if let Some(w) = warning {
                 eprintln!("warning: {w} (--spp)");
             }
             rounded
         }
-        (_, None) => scene.sample_count,
+        (_, None) => job.scene.sample_count,
     };
     let settings = progressive::ProgressiveSettings {
         spp,
@@ -470,8 +471,8 @@ fn run_render(args: RenderArgs) -> Result<()> {
         scene_hash,
         stop: Some(signals.stop.clone()),
     };
-    if let penumbra::integrator::Integrator::Aov(_) = scene.integrator {
-        return render_aov(&mut scene, &args, spp, seed);
+    if let penumbra::integrator::Integrator::Aov(aov) = &job.integrator {
+        return render_aov(&job.scene, aov, &args, spp, seed);
     }
     if let Some((index, count)) = args.part {
         let plan = progressive::PartPlan {
@@ -491,7 +492,7 @@ fn run_render(args: RenderArgs) -> Result<()> {
             }),
         };
         let warned = AtomicBool::new(false);
-        let run = progressive::render_part_with(&scene, &plan, &part_settings, resume, &|r| {
+        let run = progressive::render_part_with(&job, &plan, &part_settings, resume, &|r| {
             warn_checkpoint(r.checkpoint_error.as_deref(), &warned, &|m| {
                 eprintln!("{m}")
             })
@@ -535,7 +536,7 @@ fn run_render(args: RenderArgs) -> Result<()> {
         }
         return strict_check(args.strict, part.stats.nonfinite, &args.output);
     }
-    let pixels = (scene.width * scene.height) as u64;
+    let pixels = (job.scene.width * job.scene.height) as u64;
     let bar = if args.quiet || !std::io::stderr().is_terminal() {
         ProgressBar::hidden()
     } else {
@@ -550,7 +551,7 @@ fn run_render(args: RenderArgs) -> Result<()> {
         b
     };
     let warned = AtomicBool::new(false);
-    let (progress, reason) = progressive::render_progressive(&scene, &settings, resume, &|p| {
+    let (progress, reason) = progressive::render_progressive(&job, &settings, resume, &|p| {
         warn_checkpoint(p.checkpoint_error.as_deref(), &warned, &|m| {
             bar.suspend(|| eprintln!("{m}"))
         });
@@ -636,7 +637,13 @@ fn strict_check(strict: bool, nonfinite: u64, output: &Path) -> Result<()> {
 
 /// An `aov` scene: every channel group rendered with the same samples and written as named
 /// channels of one EXR (no progressive features: the run is one render per group).
-fn render_aov(scene: &mut Scene, args: &RenderArgs, spp: u32, seed: u64) -> Result<()> {
+fn render_aov(
+    scene: &Scene,
+    aov: &penumbra::integrator::aov::AovIntegrator,
+    args: &RenderArgs,
+    spp: u32,
+    seed: u64,
+) -> Result<()> {
     if args.resume
         || args.part.is_some()
         || args.checkpoint.is_some()
@@ -652,8 +659,7 @@ fn render_aov(scene: &mut Scene, args: &RenderArgs, spp: u32, seed: u64) -> Resu
              apply"
         );
     }
-    let (channels, stats) =
-        penumbra::integrator::aov::render_channels(scene, spp, seed, args.threads)?;
+    let (channels, stats) = penumbra::render::render_channels(scene, aov, spp, seed, args.threads)?;
     exr::write_channels(
         &args.output,
         (scene.width, scene.height),
@@ -953,9 +959,9 @@ fn run_converge(args: ConvergeArgs) -> Result<()> {
     }
     let mut results: Vec<SeriesResult> = Vec::new();
     for variant in &variants {
-        let scene = penumbra::scene::build::build(&variant.description)?;
+        let job = Job::build(&variant.description)?;
         if results.is_empty() {
-            for w in &scene.warnings {
+            for w in &job.scene.warnings {
                 eprintln!("warning: {w}");
             }
         }
@@ -969,7 +975,7 @@ fn run_converge(args: ConvergeArgs) -> Result<()> {
             let quiet = args.quiet;
             let max_seconds = args.max_seconds;
             let run = ex::run_one(
-                &scene,
+                &job,
                 &steps,
                 seed,
                 args.threads,

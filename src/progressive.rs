@@ -12,7 +12,7 @@
 
 use crate::error::{Error, Result};
 use crate::film::{ExactFilm, Film, Filter, EXACT_VALUES};
-use crate::render::{render, RenderSettings, RenderStats};
+use crate::render::{render, Job, RenderSettings, RenderStats};
 use crate::scene::Scene;
 use std::io::Read;
 use std::path::{Path, PathBuf};
@@ -164,21 +164,22 @@ pub fn relative_standard_error(film: &Film, target: ErrorTarget) -> f64 {
 /// Renders progressively from `resume` (or from scratch) until the target spp, the time limit
 /// or the target error is reached. `on_pass` sees the state after every pass.
 pub fn render_progressive(
-    scene: &Scene,
+    job: &Job,
     settings: &ProgressiveSettings,
     resume: Option<Checkpoint>,
     on_pass: &(dyn Fn(&Progress) + Sync),
 ) -> Result<(Progress, StopReason)> {
-    if matches!(scene.integrator, crate::integrator::Integrator::Aov(_)) {
+    let scene = &job.scene;
+    if matches!(job.integrator, crate::integrator::Integrator::Aov(_)) {
         return Err(Error::Invalid(
             "the aov integrator writes named channels, not an RGB image: render it with \
-             `penumbra render` (or integrator::aov::render_channels)"
+             `penumbra render` (or render::render_channels)"
                 .into(),
         ));
     }
     // SPPM's iterations depend on each other (radii, photon counts): its passes continue a
     // state, which checkpoints save, instead of adding films.
-    let sppm = match &scene.integrator {
+    let sppm = match &job.integrator {
         crate::integrator::Integrator::Sppm(s) => Some(s),
         _ => None,
     };
@@ -278,7 +279,7 @@ pub fn render_progressive(
                 stats
             }
             _ => {
-                let out = render(scene, &pass_settings, &|_, _| {})?;
+                let out = render(scene, &job.integrator, &pass_settings, &|_, _| {})?;
                 let exact = &mut progress.exact;
                 pool.install(|| exact.add(&out.film))
                     .map_err(|e| Error::Invalid(e.to_string()))?;
@@ -934,7 +935,7 @@ pub fn part_range(plan: &PartPlan, pass: u32) -> Result<(u64, u64)> {
 /// Renders one part of a split render (see [`PartPlan`]): its passes, exactly as the
 /// one-process render draws them, summed exactly. The result is a part file's content.
 pub fn render_part(
-    scene: &Scene,
+    job: &Job,
     plan: &PartPlan,
     seed: u64,
     threads: Option<usize>,
@@ -947,7 +948,7 @@ pub fn render_part(
         stop: None,
         checkpoint: None,
     };
-    Ok(render_part_with(scene, plan, &settings, None, &|_| {})?.part)
+    Ok(render_part_with(job, plan, &settings, None, &|_| {})?.part)
 }
 
 /// How [`render_part_with`] renders a part: [`render_part`]'s arguments, and what makes a
@@ -986,13 +987,14 @@ pub struct PartRun {
 /// resumed and completed is bit-identical to the part rendered in one go. `on_pass` sees the
 /// state after every pass (and after its checkpoint, if one was due).
 pub fn render_part_with(
-    scene: &Scene,
+    job: &Job,
     plan: &PartPlan,
     settings: &PartSettings,
     resume: Option<Checkpoint>,
     on_pass: &(dyn Fn(&PartRun) + Sync),
 ) -> Result<PartRun> {
-    if matches!(scene.integrator, crate::integrator::Integrator::Sppm(_)) {
+    let scene = &job.scene;
+    if matches!(job.integrator, crate::integrator::Integrator::Sppm(_)) {
         return Err(Error::Invalid(
             "an sppm render cannot be split into parts (each iteration continues the \
              previous one's radii and photon counts): render it in one process, with \
@@ -1045,6 +1047,7 @@ pub fn render_part_with(
         let spp = (pass as u64).min(b - at) as u32;
         let out = render(
             scene,
+            &job.integrator,
             &RenderSettings {
                 spp,
                 seed: settings.seed,

@@ -5,13 +5,54 @@
 
 use crate::error::{Error, Result};
 use crate::film::{Film, FilmTile};
+use crate::integrator::aov::AovIntegrator;
 use crate::integrator::ptracer::Splat;
 use crate::integrator::{Integrator, ParticleTracer, PathStats};
+use crate::scene::description::SceneDescription;
 use crate::scene::Scene;
 use glam::Vec2;
 use rayon::prelude::*;
 use std::sync::atomic::{AtomicU64, Ordering};
 use std::time::Instant;
+
+/// What a render walks: the scene, and the integrator built for it. The scene does not know
+/// its integrator; the integrator is handed the scene.
+pub struct Job {
+    pub scene: Scene,
+    pub integrator: Integrator,
+}
+
+impl Job {
+    /// Builds the scene of `desc`, then its integrator.
+    pub fn build(desc: &SceneDescription) -> Result<Job> {
+        let scene = crate::scene::build::build(desc)?;
+        let integrator = Integrator::build(&desc.integrator, &scene)?;
+        Ok(Job { scene, integrator })
+    }
+
+    /// Loads a Mitsuba XML file with `-D name=value` overrides and builds it.
+    pub fn load(path: &std::path::Path, defines: &[(String, String)]) -> Result<Job> {
+        Self::build(&Scene::load_description(path, defines)?)
+    }
+
+    /// Builds a scene from XML text; `path` locates it for messages and relative files.
+    pub fn from_xml_str(
+        text: &str,
+        path: &std::path::Path,
+        defines: &[(String, String)],
+    ) -> Result<Job> {
+        Self::build(&Scene::description_from_xml_str(text, path, defines)?)
+    }
+
+    /// The image `settings` asks for ([`render`]).
+    pub fn render(
+        &self,
+        settings: &RenderSettings,
+        progress: &(dyn Fn(u64, u64) + Sync),
+    ) -> Result<RenderOutput> {
+        render(&self.scene, &self.integrator, settings, progress)
+    }
+}
 
 /// Side of a square render tile, in pixels.
 pub const TILE_SIZE: usize = 16;
@@ -128,15 +169,16 @@ pub fn thread_pool(threads: Option<usize>) -> Result<rayon::ThreadPool> {
         .map_err(|e| Error::Invalid(format!("cannot start worker threads: {e}")))
 }
 
-/// Renders `scene` at `settings.spp` samples per pixel. `progress(done, total)` is called
-/// (from worker threads) as samples complete.
+/// Renders `scene` with `integrator` at `settings.spp` samples per pixel. `progress(done,
+/// total)` is called (from worker threads) as samples complete.
 pub fn render(
     scene: &Scene,
+    integrator: &Integrator,
     settings: &RenderSettings,
     progress: &(dyn Fn(u64, u64) + Sync),
 ) -> Result<RenderOutput> {
     let pool = thread_pool(settings.threads)?;
-    match &scene.integrator {
+    match integrator {
         Integrator::ParticleTracer(pt) => {
             return Ok(render_particles(scene, pt, settings, &pool, progress))
         }
@@ -154,7 +196,7 @@ pub fn render(
     let done = AtomicU64::new(0);
     let start = Instant::now();
     let prepared;
-    let integrator = match &scene.integrator {
+    let integrator = match integrator {
         Integrator::Radiosity(r) => {
             // Solved within the render's time and threads (kept for further passes), and
             // handed to the samples directly rather than through the integrator's lock.
@@ -275,4 +317,46 @@ fn render_particles(
     }
     stats.seconds = start.elapsed().as_secs_f64();
     RenderOutput { film, stats }
+}
+
+/// The channels of an AOV render: `(name, values)` per channel, row-major from the top row.
+pub type Channels = crate::io::exr::NamedChannels;
+
+/// Renders every channel group of the `aov` integrator at `spp` with `seed`, one group after
+/// the other, each with the same pixel samples.
+pub fn render_channels(
+    scene: &Scene,
+    aov: &AovIntegrator,
+    spp: u32,
+    seed: u64,
+    threads: Option<usize>,
+) -> Result<(Channels, RenderStats)> {
+    let settings = RenderSettings {
+        spp,
+        seed,
+        threads,
+        sampler: None,
+        first_sample: 0,
+    };
+    let mut channels = Vec::new();
+    let mut stats = RenderStats::default();
+    for (group, (name, suffixes)) in aov.groups().iter().enumerate() {
+        let integrator = Integrator::Aov(AovIntegrator {
+            group,
+            ..aov.clone()
+        });
+        let out = render(scene, &integrator, &settings, &|_, _| {})?;
+        let image = out.film.image();
+        for (c, suffix) in suffixes.iter().enumerate() {
+            channels.push((
+                format!("{name}.{suffix}"),
+                image.iter().map(|p| p[c]).collect(),
+            ));
+        }
+        stats.paths += out.stats.paths;
+        stats.path += out.stats.path;
+        stats.nonfinite += out.stats.nonfinite;
+        stats.seconds += out.stats.seconds;
+    }
+    Ok((channels, stats))
 }

@@ -16,6 +16,10 @@
 
 mod common;
 
+use penumbra::render::Job;
+use penumbra::scene::description::IntegratorDesc;
+use penumbra::scene::Scene;
+
 use std::alloc::{GlobalAlloc, Layout, System};
 use std::sync::atomic::{AtomicU64, Ordering};
 
@@ -42,9 +46,10 @@ unsafe impl GlobalAlloc for Counting {
 #[global_allocator]
 static GLOBAL: Counting = Counting;
 
-fn allocations_of_render(scene: &penumbra::scene::Scene, spp: u32) -> u64 {
+fn allocations_of_render(job: &penumbra::render::Job, spp: u32) -> u64 {
+    let scene = &job.scene;
     let before = ALLOCATIONS.load(Ordering::Relaxed);
-    let out = common::render_scene(scene, spp, 3, Some(1));
+    let out = common::render_scene(job, spp, 3, Some(1));
     let after = ALLOCATIONS.load(Ordering::Relaxed);
     // The pixels sampled: the film (16², or a scene's fixed crop window) and, with
     // sample_border, the border of the filter's reach around it.
@@ -61,9 +66,9 @@ fn allocations_of_render(scene: &penumbra::scene::Scene, spp: u32) -> u64 {
 /// How much the counts of two renders may differ for reasons outside penumbra.
 const THREAD_SLACK: u64 = 2;
 
-fn fewest_allocations(scene: &penumbra::scene::Scene, spp: u32) -> u64 {
+fn fewest_allocations(job: &Job, spp: u32) -> u64 {
     (0..3)
-        .map(|_| allocations_of_render(scene, spp))
+        .map(|_| allocations_of_render(job, spp))
         .min()
         .unwrap_or(0)
 }
@@ -91,18 +96,19 @@ fn rendering_allocates_nothing_per_sample() {
     }
     for path in scenes {
         let rel = path.strip_prefix(common::repo_path("")).expect("in repo");
-        let mut scene = common::load(rel.to_str().expect("utf-8"), &[("res", "16")]);
+        let defines = [("res".to_string(), "16".to_string())];
+        let mut desc = Scene::load_description(&path, &defines).expect("scene loads");
         if matches!(
-            scene.integrator,
-            penumbra::integrator::Integrator::ParticleTracer(_)
-                | penumbra::integrator::Integrator::Sppm(_)
+            desc.integrator,
+            IntegratorDesc::ParticleTracer { .. } | IntegratorDesc::Sppm { .. }
         ) {
-            scene.use_integrator("path").expect("path");
+            desc.use_integrator("path").expect("path");
         }
+        let job = Job::build(&desc).expect("scene builds");
         // Warm-up: the first render creates lazily initialised state (thread-locals).
-        allocations_of_render(&scene, 1);
-        let one = fewest_allocations(&scene, 1);
-        let many = fewest_allocations(&scene, 64);
+        allocations_of_render(&job, 1);
+        let one = fewest_allocations(&job, 1);
+        let many = fewest_allocations(&job, 64);
         assert!(
             many <= one + THREAD_SLACK,
             "{}: {one} allocations at 1 spp but {many} at 64 spp",

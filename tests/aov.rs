@@ -5,9 +5,10 @@
 
 mod common;
 use common::*;
-use penumbra::integrator::aov::render_channels;
+use penumbra::integrator::Integrator;
 use penumbra::io::exr;
-use penumbra::scene::Scene;
+use penumbra::render::render_channels;
+use penumbra::render::Job;
 use std::process::Command;
 
 const RES: usize = 32;
@@ -44,12 +45,24 @@ fn channel<'a>(channels: &'a [(String, Vec<f32>)], name: &str) -> &'a [f32] {
         .1
 }
 
+/// The channels of a job whose integrator is `aov`.
+fn aov_channels(
+    job: &Job,
+    spp: u32,
+    seed: u64,
+) -> (penumbra::render::Channels, penumbra::render::RenderStats) {
+    let Integrator::Aov(aov) = &job.integrator else {
+        panic!("not an aov scene");
+    };
+    render_channels(&job.scene, aov, spp, seed, None).expect("renders")
+}
+
 #[test]
 fn aovs_of_a_plane_have_their_closed_forms() {
-    let mut scene = scene_from_str(&scene_xml(
+    let job = scene_from_str(&scene_xml(
         r#"<integrator type="aov"><string name="aovs" value="dd:depth,pp:position,ng:geo_normal,nn:sh_normal,uv:uv,alb:albedo"/></integrator>"#,
     ));
-    let (ch, _) = render_channels(&mut scene, 16, 3, None).unwrap();
+    let (ch, _) = aov_channels(&job, 16, 3);
     let names: Vec<&str> = ch.iter().map(|(n, _)| n.as_str()).collect();
     assert_eq!(
         names,
@@ -108,12 +121,12 @@ fn aovs_of_a_plane_have_their_closed_forms() {
 
 #[test]
 fn nested_integrator_renders_as_without_aov() {
-    let mut scene = scene_from_str(&scene_xml(
+    let job = scene_from_str(&scene_xml(
         r#"<integrator type="aov"><string name="aovs" value="dd:depth"/>
              <integrator type="path" name="img"><integer name="max_depth" value="3"/></integrator>
            </integrator>"#,
     ));
-    let (ch, _) = render_channels(&mut scene, 16, 5, None).unwrap();
+    let (ch, _) = aov_channels(&job, 16, 5);
     assert_eq!(ch[0].0, "img.R");
     let plain = scene_from_str(&scene_xml(
         r#"<integrator type="path"><integer name="max_depth" value="3"/></integrator>"#,
@@ -187,7 +200,7 @@ fn bad_aov_lists_are_one_line_errors() {
         ),
     ] {
         let xml = scene_xml(&format!(r#"<integrator type="aov">{body}</integrator>"#));
-        let err = Scene::from_xml_str(&xml, &repo_path("tests/inline.xml"), &[])
+        let err = Job::from_xml_str(&xml, &repo_path("tests/inline.xml"), &[])
             .err()
             .unwrap_or_else(|| panic!("{body} was accepted"))
             .to_string();

@@ -7,8 +7,8 @@
 
 mod common;
 use common::*;
-use penumbra::render::{render, RenderSettings};
-use penumbra::scene::Scene;
+use penumbra::render::Job;
+use penumbra::render::RenderSettings;
 use std::time::{Duration, Instant};
 
 fn files(dir: &str) -> Vec<std::path::PathBuf> {
@@ -27,7 +27,7 @@ fn every_invalid_input_is_refused_quickly() {
     assert!(cases.len() >= 20);
     for path in cases {
         let start = Instant::now();
-        let result = Scene::load(&path, &[]);
+        let result = Job::load(&path, &[]);
         let err = match result {
             Err(e) => e.to_string(),
             Ok(_) => panic!("{} was accepted", path.display()),
@@ -57,8 +57,8 @@ fn every_fuzzer_found_input_loads_or_fails_cleanly() {
     );
     let mut rendered = 0;
     for path in paths {
-        match Scene::load(&path, &[]) {
-            Ok(scene) if scene.width * scene.height <= 4096 => {
+        match Job::load(&path, &[]) {
+            Ok(scene) if scene.scene.width * scene.scene.height <= 4096 => {
                 let settings = RenderSettings {
                     spp: 4,
                     seed: 0,
@@ -66,7 +66,8 @@ fn every_fuzzer_found_input_loads_or_fails_cleanly() {
                     sampler: None,
                     first_sample: 0,
                 };
-                let out = render(&scene, &settings, &|_, _| {})
+                let out = scene
+                    .render(&settings, &|_, _| {})
                     .unwrap_or_else(|e| panic!("{}: {e}", path.display()));
                 assert!(
                     out.film.image().iter().flatten().all(|v| v.is_finite()),
@@ -94,9 +95,9 @@ fn a_million_nested_elements_and_a_hundred_thousand_attributes_are_refused() {
         "</bsdf>".repeat(n)
     );
     let start = Instant::now();
-    assert!(Scene::from_xml_str(&deep, &repo_path("tests/deep.xml"), &[]).is_err());
+    assert!(Job::from_xml_str(&deep, &repo_path("tests/deep.xml"), &[]).is_err());
     let attrs: String = (0..100_000).map(|i| format!(" a{i}=\"{i}\"")).collect();
     let wide = format!("<scene version=\"3.0.0\"><shape type=\"cube\"{attrs}/></scene>");
-    assert!(Scene::from_xml_str(&wide, &repo_path("tests/wide.xml"), &[]).is_err());
+    assert!(Job::from_xml_str(&wide, &repo_path("tests/wide.xml"), &[]).is_err());
     assert!(start.elapsed() < Duration::from_secs(10));
 }

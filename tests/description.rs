@@ -1925,10 +1925,12 @@ fn a_scene_without_integrator_renders_with_path_and_says_so() {
             hide_emitters: false
         }
     );
-    let mut scene = build(&d).unwrap();
+    let scene = build(&d).unwrap();
     assert_eq!(scene.warnings.len(), 1);
     assert!(scene.warnings[0].starts_with("the scene has no <integrator>: rendering with path"));
-    scene.use_integrator("path").unwrap();
+    let mut chosen = d.clone();
+    chosen.use_integrator("path").unwrap();
+    let scene = build(&chosen).unwrap();
     assert!(scene.warnings.is_empty(), "{:?}", scene.warnings);
     let d = desc(&with_sensor(r#"<integrator type="path"/>"#));
     assert!(!d.integrator_missing);

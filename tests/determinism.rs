@@ -32,22 +32,22 @@ fn different_seeds_give_different_but_statistically_equal_images() {
 
 #[test]
 fn a_continued_render_adds_up_to_the_uninterrupted_one() {
-    use penumbra::render::{render, RenderSettings};
+    use penumbra::render::RenderSettings;
     let scene = load("scenes/cornell-box.xml", &[("res", "24")]);
     let run = |spp, first_sample| {
-        render(
-            &scene,
-            &RenderSettings {
-                spp,
-                seed: 9,
-                threads: None,
-                sampler: None,
-                first_sample,
-            },
-            &|_, _| {},
-        )
-        .unwrap()
-        .film
+        scene
+            .render(
+                &RenderSettings {
+                    spp,
+                    seed: 9,
+                    threads: None,
+                    sampler: None,
+                    first_sample,
+                },
+                &|_, _| {},
+            )
+            .unwrap()
+            .film
     };
     let whole = run(12, 0);
     let mut parts = run(4, 0);

@@ -9,6 +9,7 @@ use glam::{Vec2, Vec3};
 use penumbra::emitter::Emitter;
 use penumbra::geometry::{Frame, Ray};
 use penumbra::math::simpson;
+use penumbra::render::Job;
 use penumbra::sampler::SampleStream;
 use penumbra::scene::Scene;
 use penumbra::shape::SurfaceInteraction;
@@ -19,7 +20,7 @@ use std::f64::consts::PI;
 /// Chi-square tests in this file (for the Šidák correction of α = 0.01).
 const CHI2_TESTS: usize = 15;
 
-fn scene(body: &str) -> Scene {
+fn scene(body: &str) -> Job {
     scene_from_str(&format!(
         r#"<scene version="3.0.0">
     <sensor type="perspective">
@@ -49,26 +50,29 @@ fn reference_point(p: Vec3, n: Vec3) -> SurfaceInteraction {
 
 /// The density the path tracer's MIS uses for direction `d` from `p`, and the radiance it
 /// sees there: the emitter surface hit first, or the environment.
-fn pdf_and_radiance(scene: &Scene, p: Vec3, d: Vec3) -> (f64, Vec3) {
-    match scene.intersect(&Ray::new(p, d, f32::INFINITY)) {
+fn pdf_and_radiance(scene: &Job, p: Vec3, d: Vec3) -> (f64, Vec3) {
+    match scene.scene.intersect(&Ray::new(p, d, f32::INFINITY)) {
         Some(hit) => {
-            let le = match scene.shapes[hit.shape as usize].emitter {
-                Some(e) => match &scene.emitters[e as usize] {
-                    Emitter::Area(a) => a.eval(&hit, -d, &scene.shapes),
+            let le = match scene.scene.shapes[hit.shape as usize].emitter {
+                Some(e) => match &scene.scene.emitters[e as usize] {
+                    Emitter::Area(a) => a.eval(&hit, -d, &scene.scene.shapes),
                     _ => Vec3::ZERO,
                 },
                 None => Vec3::ZERO,
             };
-            (scene.pdf_emitter_direction(p, &hit) as f64, le)
+            (scene.scene.pdf_emitter_direction(p, &hit) as f64, le)
         }
-        None => (scene.pdf_environment(d) as f64, scene.eval_environment(d)),
+        None => (
+            scene.scene.pdf_environment(d) as f64,
+            scene.scene.eval_environment(d),
+        ),
     }
 }
 
 /// Chi-square test of `scene.sample_emitter_direction` from `p` (delta samples left out),
 /// plus the per-sample consistency of pdf and radiance with what a ray in that direction
 /// finds.
-fn check_sampling(name: &str, scene: &Scene, p: Vec3, seed: u64) {
+fn check_sampling(name: &str, scene: &Job, p: Vec3, seed: u64) {
     let si = reference_point(p, Vec3::Z);
     let n = 300_000;
     // Emitter densities jump at the silhouettes of the lights: a finer Simpson rule than
@@ -84,11 +88,11 @@ fn check_sampling(name: &str, scene: &Scene, p: Vec3, seed: u64) {
         n,
         |i| {
             let u = SampleStream::new(seed, i as u64, 0).next_2d();
-            let ds = scene.sample_emitter_direction(&si, u)?;
+            let ds = scene.scene.sample_emitter_direction(&si, u)?;
             // Delta samples have no density; occluded samples (behind another emitter)
             // contribute nothing, and the density of the rest at d is that of the emitter
             // a ray along d finds first.
-            if ds.delta || scene.occluded(&Scene::shadow_ray(&si, &ds)) {
+            if ds.delta || scene.scene.occluded(&Scene::shadow_ray(&si, &ds)) {
                 return None;
             }
             // Per-sample checks away from grazing emitter points: there the f32 ray along
@@ -412,7 +416,7 @@ fn several_lights_selected_uniformly_chi2() {
     );
     // Uniform selection, as Mitsuba's Scene::sample_emitter does.
     for i in 0..4 {
-        assert_eq!(s.emitter_pmf(i), 0.25);
+        assert_eq!(s.scene.emitter_pmf(i), 0.25);
     }
     check_sampling(
         "rectangle + sphere + spot + constant",
@@ -441,9 +445,9 @@ fn sampling_weights_choose_the_emitters_chi2() {
     );
     for (i, w) in [3.0, 0.5, 1.0, 2.0].iter().enumerate() {
         assert!(
-            (s.emitter_pmf(i) - w / 6.5).abs() < 1e-7,
+            (s.scene.emitter_pmf(i) - w / 6.5).abs() < 1e-7,
             "{i}: {}",
-            s.emitter_pmf(i)
+            s.scene.emitter_pmf(i)
         );
     }
     // The choices follow the weights: a z-test per emitter over 10^5 picks.
@@ -451,10 +455,10 @@ fn sampling_weights_choose_the_emitters_chi2() {
     let mut counts = [0usize; 4];
     for i in 0..n {
         let u = SampleStream::new(12, i as u64, 0).next_1d();
-        counts[s.pick_emitter(u).unwrap().0] += 1;
+        counts[s.scene.pick_emitter(u).unwrap().0] += 1;
     }
     for (i, c) in counts.iter().enumerate() {
-        let p = s.emitter_pmf(i) as f64;
+        let p = s.scene.emitter_pmf(i) as f64;
         let z = (*c as f64 - n as f64 * p) / (n as f64 * p * (1.0 - p)).sqrt();
         assert!(z.abs() < 4.0, "emitter {i}: {c} picks, z = {z:.2}");
     }
@@ -469,16 +473,16 @@ fn sampling_weights_choose_the_emitters_chi2() {
         r#"<emitter type="spot"><float name="sampling_weight" value="1"/></emitter>
     <emitter type="point"/>"#,
     );
-    assert!(u.emitter_weights.is_none());
+    assert!(u.scene.emitter_weights.is_none());
 }
 
 /// The NEE estimate of the irradiance at `si` (normal `si.frame.n`), unoccluded, with its
 /// standard error.
-fn nee_irradiance(scene: &Scene, si: &SurfaceInteraction, n: usize, seed: u64) -> (f64, f64) {
+fn nee_irradiance(scene: &Job, si: &SurfaceInteraction, n: usize, seed: u64) -> (f64, f64) {
     let (mut s1, mut s2) = (0.0, 0.0);
     for i in 0..n {
         let u = SampleStream::new(seed, i as u64, 0).next_2d();
-        let v = match scene.sample_emitter_direction(si, u) {
+        let v = match scene.scene.sample_emitter_direction(si, u) {
             Some(ds) => {
                 let cos = ds.d.dot(si.frame.n).max(0.0) as f64;
                 ds.radiance.x as f64 * cos / ds.pdf as f64
@@ -546,7 +550,7 @@ fn analytic_irradiance_from_disk_sphere_and_constant_environment() {
         for j in 0..np {
             let phi = 2.0 * PI * (j as f64 + 0.5) / np as f64;
             let d = Vec3::new((st * phi.cos()) as f32, ct as f32, (st * phi.sin()) as f32);
-            exact += s.eval_environment(d).x as f64 * ct;
+            exact += s.scene.eval_environment(d).x as f64 * ct;
         }
     }
     exact *= 2.0 * PI / (nt * np) as f64;
@@ -560,7 +564,10 @@ fn delta_lights_give_mitsubas_values() {
     let s = scene(
         r#"<emitter type="point"><point name="position" value="0, 0, 2"/><float name="intensity" value="3"/></emitter>"#,
     );
-    let ds = s.sample_emitter_direction(&si, Vec2::splat(0.5)).unwrap();
+    let ds = s
+        .scene
+        .sample_emitter_direction(&si, Vec2::splat(0.5))
+        .unwrap();
     assert!(ds.delta && ds.pdf == 1.0 && (ds.dist - 2.0).abs() < 1e-6);
     assert!((ds.radiance - Vec3::splat(0.75)).abs().max_element() < 1e-6);
     assert!((ds.d - Vec3::Z).length() < 1e-6);
@@ -586,6 +593,7 @@ fn delta_lights_give_mitsubas_values() {
         let p = Vec3::new(a.sin() * 2.0, 0.0, a.cos() * 2.0);
         let si = reference_point(p, -Vec3::Z);
         let got = s
+            .scene
             .sample_emitter_direction(&si, Vec2::splat(0.5))
             .map_or(0.0, |ds| ds.radiance.x * 4.0);
         assert!(
@@ -597,7 +605,10 @@ fn delta_lights_give_mitsubas_values() {
     let s = scene(
         r#"<emitter type="directional"><vector name="direction" value="0, 0, -1"/><float name="irradiance" value="2"/></emitter>"#,
     );
-    let ds = s.sample_emitter_direction(&si, Vec2::splat(0.3)).unwrap();
+    let ds = s
+        .scene
+        .sample_emitter_direction(&si, Vec2::splat(0.3))
+        .unwrap();
     assert!(ds.delta && ds.is_infinite() && (ds.d - Vec3::Z).length() < 1e-6);
     assert_eq!(ds.radiance, Vec3::splat(2.0));
     assert_eq!(Scene::shadow_ray(&si, &ds).tmax, f32::INFINITY);
@@ -652,9 +663,9 @@ fn emitter_power_closed_forms() {
         2.0 * pi * (1.0 - mid.cos()) * 2.0,
         pi * r * r * 1.5,
     ];
-    assert_eq!(s.emitters.len(), expected.len());
-    for (e, want) in s.emitters.iter().zip(expected) {
-        let got = e.power(&s.shapes, r);
+    assert_eq!(s.scene.emitters.len(), expected.len());
+    for (e, want) in s.scene.emitters.iter().zip(expected) {
+        let got = e.power(&s.scene.shapes, r);
         assert!(
             (got / want - 1.0).abs() < 1e-5,
             "{e:?}: power {got}, expected {want}"
@@ -662,7 +673,7 @@ fn emitter_power_closed_forms() {
     }
     let s =
         scene(r#"<emitter type="constant"><rgb name="radiance" value="0.5, 1, 1.5"/></emitter>"#);
-    let got = s.emitters[0].power(&s.shapes, r);
+    let got = s.scene.emitters[0].power(&s.scene.shapes, r);
     let want = pi * pi * r * r;
     assert!((got / want - 1.0).abs() < 1e-5, "constant: {got} vs {want}");
     // projector: π × mean irradiance × scale × the image's area at distance 1,
@@ -670,7 +681,7 @@ fn emitter_power_closed_forms() {
     let s = scene(
         r#"<emitter type="projector"><rgb name="irradiance" value="0.5, 1, 1.5"/><float name="scale" value="3"/><float name="fov" value="90"/></emitter>"#,
     );
-    let got = s.emitters[0].power(&s.shapes, r);
+    let got = s.scene.emitters[0].power(&s.scene.shapes, r);
     let want = pi * 3.0 * 4.0;
     assert!(
         (got / want - 1.0).abs() < 1e-5,
@@ -699,7 +710,7 @@ fn emitter_rays_carry_the_emitted_power() {
         <emitter type="directional"><vector name="direction" x="0" y="0.6" z="-0.8"/><float name="irradiance" value="1.5"/></emitter>
         <emitter type="constant"><rgb name="radiance" value="0.5, 1, 1.5"/></emitter>"#,
     );
-    let r = s.bounding_sphere.1 as f64;
+    let r = s.scene.bounding_sphere.1 as f64;
     let (beam, cutoff) = (10f64.to_radians(), 30f64.to_radians());
     let falloff = |t: f64| {
         if t <= beam {
@@ -722,15 +733,19 @@ fn emitter_rays_carry_the_emitted_power() {
             4.0 * PI * PI * r * r * 1.5,
         ),
     ];
-    assert_eq!(s.emitters.len(), expected.len());
+    assert_eq!(s.scene.emitters.len(), expected.len());
     let z_crit = normal_critical_z(sidak(0.01, 3 * expected.len()));
-    for (i, (e, want)) in s.emitters.iter().zip(expected).enumerate() {
+    for (i, (e, want)) in s.scene.emitters.iter().zip(expected).enumerate() {
         let n = 400_000;
         let (mut sum, mut sum_sq) = ([0.0f64; 3], [0.0f64; 3]);
         let mut rng = SampleStream::new(0xe41, i as u64, 0);
         for _ in 0..n {
-            let Some(er) = e.sample_ray(rng.next_2d(), rng.next_2d(), &s.shapes, s.bounding_sphere)
-            else {
+            let Some(er) = e.sample_ray(
+                rng.next_2d(),
+                rng.next_2d(),
+                &s.scene.shapes,
+                s.scene.bounding_sphere,
+            ) else {
                 continue;
             };
             assert!(er.weight.is_finite(), "{e:?}: weight {}", er.weight);

@@ -18,8 +18,8 @@ use penumbra::progressive::{
     merge_part_files, merge_parts, relative_standard_error, render_part, render_progressive,
     Checkpoint, ErrorTarget, PartPlan, ProgressiveSettings, StopReason,
 };
-use penumbra::render::{render, RenderSettings};
-use penumbra::scene::Scene;
+use penumbra::render::Job;
+use penumbra::render::RenderSettings;
 use std::alloc::{GlobalAlloc, Layout, System};
 use std::cell::Cell;
 use std::path::{Path, PathBuf};
@@ -624,7 +624,7 @@ const CORNELL_RADIANCE: &str = r#"<rgb name="radiance" value="18.387, 13.9873, 6
 
 /// The Cornell box at `res`² with its emitter's radiance multiplied by `factor` (in f64, then
 /// written with enough digits to read back the same double: exact for a power of two).
-fn cornell_scaled(res: u32, factor: Option<f64>) -> Scene {
+fn cornell_scaled(res: u32, factor: Option<f64>) -> Job {
     let path = repo_path("scenes/cornell-box.xml");
     let text = std::fs::read_to_string(&path).expect("scene");
     assert_eq!(
@@ -646,12 +646,12 @@ fn cornell_scaled(res: u32, factor: Option<f64>) -> Scene {
         }
     };
     let defines = [("res".to_string(), res.to_string())];
-    Scene::from_xml_str(&text, &path, &defines).expect("scene builds")
+    Job::from_xml_str(&text, &path, &defines).expect("scene builds")
 }
 
 /// The Cornell box with its emitter written with a literal factor, as issue 40's scenes are:
 /// each radiance rounds once (to f64 here, then to f32 in the scene).
-fn cornell_literal(res: u32, exponent: i32) -> Scene {
+fn cornell_literal(res: u32, exponent: i32) -> Job {
     let path = repo_path("scenes/cornell-box.xml");
     let text = std::fs::read_to_string(&path).expect("scene");
     let text = text.replace(
@@ -661,10 +661,10 @@ fn cornell_literal(res: u32, exponent: i32) -> Scene {
         ),
     );
     let defines = [("res".to_string(), res.to_string())];
-    Scene::from_xml_str(&text, &path, &defines).expect("scene builds")
+    Job::from_xml_str(&text, &path, &defines).expect("scene builds")
 }
 
-fn progressive_film(scene: &Scene, spp: u32) -> Film {
+fn progressive_film(scene: &Job, spp: u32) -> Film {
     let (p, reason) = render_progressive(scene, &settings(spp), None, &|_| {}).expect("renders");
     assert_eq!(reason, StopReason::SppReached);
     p.film
@@ -781,7 +781,7 @@ fn scaled_cornell_box_renders_the_unit_image_times_the_factor() {
 fn target_error_stops_at_the_same_pass_at_any_power_of_two_scale() {
     // 8² pixels: passes of 256 spp. The target is the unit render's error after its fourth
     // pass, so the unit render stops there.
-    let errors_of = |scene: &Scene, target: Option<f64>, kind| {
+    let errors_of = |scene: &Job, target: Option<f64>, kind| {
         let errors = std::sync::Mutex::new(Vec::new());
         let s = ProgressiveSettings {
             target_rel_error: target.map(|t| (t, kind)),
@@ -1014,7 +1014,7 @@ fn old_checkpoints_convert_exactly_and_resume() {
     );
     // Resume to 1024 spp: the old sums plus the two further passes, exactly.
     let mut scene = cornell_scaled(8, None);
-    scene.sampler.sample_count = c.sampler_points;
+    scene.scene.sampler.sample_count = c.sampler_points;
     let s = ProgressiveSettings {
         seed: 5,
         scene_hash: c.scene_hash,
@@ -1022,18 +1022,18 @@ fn old_checkpoints_convert_exactly_and_resume() {
     };
     let mut want = c.exact.clone();
     for first_sample in [512, 768] {
-        let out = render(
-            &scene,
-            &RenderSettings {
-                spp: 256,
-                seed: 5,
-                threads: None,
-                sampler: None,
-                first_sample,
-            },
-            &|_, _| {},
-        )
-        .expect("pass");
+        let out = scene
+            .render(
+                &RenderSettings {
+                    spp: 256,
+                    seed: 5,
+                    threads: None,
+                    sampler: None,
+                    first_sample,
+                },
+                &|_, _| {},
+            )
+            .expect("pass");
         want.add(&out.film).expect("adds");
     }
     let (p, reason) = render_progressive(&scene, &s, Some(c), &|_| {}).expect("resumes");
@@ -1051,7 +1051,7 @@ fn old_part_files_merge_with_new_ones() {
         (Some((0, 2)), 0, 512)
     );
     let mut scene = cornell_scaled(8, None);
-    scene.sampler.sample_count = old.sampler_points;
+    scene.scene.sampler.sample_count = old.sampler_points;
     let plan = PartPlan {
         index: 1,
         count: 2,

@@ -93,12 +93,13 @@ fn rays_and_connections_match_mitsuba() {
     for c in cases() {
         let scene = scene_from_str(&scene_xml(&c));
         assert_eq!(
-            (scene.width, scene.height),
+            (scene.scene.width, scene.scene.height),
             (c.crop[2] as usize, c.crop[3] as usize)
         );
         // penumbra builds the scene around the camera: world = camera-relative + origin.
         for r in &c.rays {
             let ray = scene
+                .scene
                 .camera
                 .generate_ray(Vec2::new(r[0] as f32, r[1] as f32));
             let o = ray.o.as_dvec3() + c.origin;
@@ -112,7 +113,7 @@ fn rays_and_connections_match_mitsuba() {
         let crop = DVec2::new(c.crop[2] as f64, c.crop[3] as f64);
         for k in &c.connections {
             let p = DVec3::new(k[0], k[1], k[2]) - c.origin;
-            let ours = scene.camera.sample_direction(p.as_vec3());
+            let ours = scene.scene.camera.sample_direction(p.as_vec3());
             assert_eq!(ours.is_some(), k[3] == 1.0, "{}: valid at {p}", c.name);
             if let Some(s) = ours {
                 let uv = s.film.as_dvec2() * crop;

@@ -6,6 +6,7 @@ mod common;
 use common::*;
 use glam::Vec3;
 use penumbra::geometry::Ray;
+use penumbra::render::Job;
 use penumbra::scene::Scene;
 use rand::RngExt;
 use rand_pcg::Pcg32;
@@ -13,7 +14,7 @@ use rand_pcg::Pcg32;
 const SENSOR: &str = r#"<sensor type="perspective"><float name="fov" value="45"/>
     <film type="hdrfilm"><integer name="width" value="4"/><integer name="height" value="4"/><rfilter type="box"/></film></sensor>"#;
 
-fn scene(shapes: &str) -> Scene {
+fn scene(shapes: &str) -> Job {
     scene_from_str(&format!(
         r#"<scene version="3.0.0">{SENSOR}{shapes}</scene>"#
     ))
@@ -29,22 +30,27 @@ fn rectangle_hits_misses_and_normal() {
         r#"<shape type="rectangle"><transform name="to_world"><scale x="2" y="1" z="1"/><translate z="-3"/></transform></shape>"#,
     );
     let si = s
+        .scene
         .intersect(&ray([1.9, 0.9, 0.0], [0.0, 0.0, -1.0]))
         .unwrap();
     assert!((si.t - 3.0).abs() < 1e-6 && (si.ng - Vec3::Z).length() < 1e-6);
     assert!(s
+        .scene
         .intersect(&ray([2.1, 0.0, 0.0], [0.0, 0.0, -1.0]))
         .is_none());
     assert!(s
+        .scene
         .intersect(&ray([0.0, 0.0, 0.0], [0.0, 0.0, 1.0]))
         .is_none());
     // from behind: still hit (one-sidedness is the BSDF's business, not the geometry's)
     let si = s
+        .scene
         .intersect(&ray([0.0, 0.0, -5.0], [0.0, 0.0, 1.0]))
         .unwrap();
     assert!((si.t - 2.0).abs() < 1e-6);
     // grazing
     let si = s
+        .scene
         .intersect(&ray([-50.0, 0.5, -2.0], [50.0, 0.0, -1.0]))
         .unwrap();
     assert!((si.p.z + 3.0).abs() < 1e-4);
@@ -55,18 +61,25 @@ fn cube_from_outside_and_inside() {
     let s = scene(
         r#"<shape type="cube"><transform name="to_world"><translate x="5"/></transform></shape>"#,
     );
-    let si = s.intersect(&ray([0.0, 0.0, 0.0], [1.0, 0.0, 0.0])).unwrap();
+    let si = s
+        .scene
+        .intersect(&ray([0.0, 0.0, 0.0], [1.0, 0.0, 0.0]))
+        .unwrap();
     assert!(
         (si.t - 4.0).abs() < 1e-6 && (si.ng + Vec3::X).length() < 1e-6,
         "outward normal"
     );
-    let si = s.intersect(&ray([5.0, 0.2, 0.3], [0.0, 1.0, 0.0])).unwrap();
+    let si = s
+        .scene
+        .intersect(&ray([5.0, 0.2, 0.3], [0.0, 1.0, 0.0]))
+        .unwrap();
     assert!((si.t - 0.8).abs() < 1e-6 && (si.ng - Vec3::Y).length() < 1e-6);
     assert!(s
+        .scene
         .intersect(&ray([0.0, 1.01, 0.0], [1.0, 0.0, 0.0]))
         .is_none());
     // through an edge of the cube (watertight: no slip between the faces)
-    let si = s.intersect(&ray([4.0, 1.0, 0.0], [1.0, -1.0, 0.0]));
+    let si = s.scene.intersect(&ray([4.0, 1.0, 0.0], [1.0, -1.0, 0.0]));
     assert!(si.is_some());
 }
 
@@ -77,10 +90,12 @@ fn disk_hits_inside_radius_only() {
     );
     // rotated 90° about x: local +z becomes world -y
     let si = s
+        .scene
         .intersect(&ray([1.9, 5.0, 0.0], [0.0, -1.0, 0.0]))
         .unwrap();
     assert!((si.t - 5.0).abs() < 1e-5 && (si.ng + Vec3::Y).length() < 1e-6);
     assert!(s
+        .scene
         .intersect(&ray([1.5, 5.0, 1.5], [0.0, -1.0, 0.0]))
         .is_none());
 }
@@ -91,17 +106,21 @@ fn sphere_outside_inside_grazing() {
         r#"<shape type="sphere"><point name="center" x="0" y="0" z="-10"/><float name="radius" value="2"/></shape>"#,
     );
     let si = s
+        .scene
         .intersect(&ray([0.0, 0.0, 0.0], [0.0, 0.0, -1.0]))
         .unwrap();
     assert!((si.t - 8.0).abs() < 1e-5 && (si.ng - Vec3::Z).length() < 1e-5);
     let si = s
+        .scene
         .intersect(&ray([0.0, 0.0, -10.0], [0.0, 1.0, 0.0]))
         .unwrap();
     assert!((si.t - 2.0).abs() < 1e-5, "from inside");
     assert!(s
+        .scene
         .intersect(&ray([2.001, 0.0, 0.0], [0.0, 0.0, -1.0]))
         .is_none());
     let si = s
+        .scene
         .intersect(&ray([1.999, 0.0, 0.0], [0.0, 0.0, -1.0]))
         .unwrap();
     assert!(
@@ -121,7 +140,7 @@ fn nearest_of_overlapping_shapes_wins() {
     let order = [(3u32, 1.25f32), (1, 2.5), (2, 4.0), (0, 5.0)];
     let mut o = [0.0f32, 0.0, 0.0];
     for (shape, t) in order {
-        let si = s.intersect(&ray(o, [0.0, 0.0, -1.0])).unwrap();
+        let si = s.scene.intersect(&ray(o, [0.0, 0.0, -1.0])).unwrap();
         assert_eq!(si.shape, shape);
         assert!(
             (si.t + (-o[2]) - t).abs() < 1e-5,
@@ -137,7 +156,7 @@ fn nearest_of_overlapping_shapes_wins() {
             0.01
         });
     }
-    assert!(s.intersect(&ray(o, [0.0, 0.0, -1.0])).is_none());
+    assert!(s.scene.intersect(&ray(o, [0.0, 0.0, -1.0])).is_none());
 }
 
 /// Rays from random points towards a shape; from each hit, rays leave in random directions
@@ -174,7 +193,7 @@ fn reintersection(scale: f64, offset: f64) {
             (c[2] + (rng.random::<f64>() - 0.5) * scale) as f32,
         );
         let o = target - dir * (4.0 * scale) as f32;
-        let Some(si) = s.intersect(&Ray::new(o, dir, f32::INFINITY)) else {
+        let Some(si) = s.scene.intersect(&Ray::new(o, dir, f32::INFINITY)) else {
             continue;
         };
         hits += 1;
@@ -186,7 +205,7 @@ fn reintersection(scale: f64, offset: f64) {
             )
             .normalize();
             let outward = w.dot(si.ng) > 0.0;
-            let next = s.intersect(&Scene::spawn_ray(&si, w));
+            let next = s.scene.intersect(&Scene::spawn_ray(&si, w));
             match (si.shape, next) {
                 (3, Some(n)) if !outward && n.shape == 3 => {
                     // chord through the sphere: length 2 r |cos θ|, up to the origin's
@@ -249,9 +268,11 @@ fn directions_with_negative_zero_components_hit() {
         glam::Vec3::new(0.0, -0.0, -1.0),
     ] {
         let ray = penumbra::geometry::Ray::new(glam::Vec3::ZERO, d, f32::INFINITY);
-        let hit = scene.intersect(&ray).expect("hit");
+        let hit = scene.scene.intersect(&ray).expect("hit");
         assert!((hit.t - 2.0).abs() < 1e-6);
-        assert!(scene.occluded(&penumbra::geometry::Ray::new(glam::Vec3::ZERO, d, 10.0)));
+        assert!(scene
+            .scene
+            .occluded(&penumbra::geometry::Ray::new(glam::Vec3::ZERO, d, 10.0)));
     }
 }
 
@@ -274,7 +295,7 @@ fn instanced_analytic_shapes_hit_like_placed_ones() {
             ng_tolerance: 1e-4,
             surface_details: false,
         };
-        let hits = compare_instanced_hits(&direct, &instanced, rays, &checks, shape);
+        let hits = compare_instanced_hits(&direct.scene, &instanced.scene, rays, &checks, shape);
         assert!(hits > 40, "{shape}: {hits} hits");
     }
 }

@@ -10,6 +10,7 @@ mod common;
 use common::*;
 use glam::Vec3;
 use penumbra::phase::{HenyeyGreenstein, PhaseFunction};
+use penumbra::render::Job;
 use penumbra::sampler::SampleStream;
 use penumbra::study::chi2::{chi2_test_adaptive, Chi2Config};
 use penumbra::study::stats::{normal_critical_z, sidak};
@@ -496,11 +497,10 @@ fn bad_media_input_gets_one_clear_error() {
     ];
     for (body, expected) in cases {
         let xml = scene_xml("volpath", -1, "", body);
-        let e =
-            match penumbra::scene::Scene::from_xml_str(&xml, &repo_path("tests/inline.xml"), &[]) {
-                Ok(_) => panic!("{body}: accepted"),
-                Err(e) => e.to_string(),
-            };
+        let e = match Job::from_xml_str(&xml, &repo_path("tests/inline.xml"), &[]) {
+            Ok(_) => panic!("{body}: accepted"),
+            Err(e) => e.to_string(),
+        };
         assert!(e.contains(expected), "{body}: {e}");
         assert!(!e.contains('\n'), "{body}: not one line: {e}");
     }

@@ -9,6 +9,7 @@ mod common;
 use common::{compare_instanced_hits, repo_path, HitChecks};
 use glam::{DVec3, Vec3};
 use penumbra::geometry::Ray;
+use penumbra::render::Job;
 use penumbra::scene::description::{BsdfDesc, EmitterDesc, IntegratorDesc};
 use penumbra::scene::Scene;
 use std::path::Path;
@@ -28,9 +29,9 @@ fn mitsubas_example_scenes_load() {
         "scenes/mitsuba/cbox/cbox-spectral.xml",
         "scenes/mitsuba/hello.xml",
     ] {
-        let scene = Scene::load(&repo_path(file), &[]).unwrap_or_else(|e| panic!("{file}: {e}"));
-        assert!(!scene.emitters.is_empty(), "{file}");
-        assert!(scene.accel.primitive_count() > 0, "{file}");
+        let scene = Job::load(&repo_path(file), &[]).unwrap_or_else(|e| panic!("{file}: {e}"));
+        assert!(!scene.scene.emitters.is_empty(), "{file}");
+        assert!(scene.scene.accel.primitive_count() > 0, "{file}");
     }
     let cbox = Scene::load_description(&repo_path("scenes/mitsuba/cbox/cbox.xml"), &[]).unwrap();
     assert_eq!(cbox.shapes.len(), 8);
@@ -102,13 +103,13 @@ fn instances_hit_like_the_shapes_they_place() {
                <transform name="to_world"><lookat origin="0,0,0" target="0,1,0" up="0,0,1"/></transform></sensor>{body}</scene>"#
         )
     };
-    let direct = Scene::from_xml_str(
+    let direct = Job::from_xml_str(
         &base(&format!(r#"<shape type="cube">{t}</shape>"#)),
         Path::new("/virtual/dir/scene.xml"),
         &[],
     )
     .unwrap();
-    let instanced = Scene::from_xml_str(
+    let instanced = Job::from_xml_str(
         &base(&format!(
             r#"<shape type="shapegroup" id="g"><shape type="cube"/></shape><shape type="instance"><ref id="g"/>{t}</shape>"#
         )),
@@ -129,7 +130,7 @@ fn instances_hit_like_the_shapes_they_place() {
         ng_tolerance: 1e-5,
         surface_details: true,
     };
-    let hits = compare_instanced_hits(&direct, &instanced, rays, &checks, "cube");
+    let hits = compare_instanced_hits(&direct.scene, &instanced.scene, rays, &checks, "cube");
     assert!(hits > 150, "{hits}");
 }
 
@@ -173,13 +174,13 @@ fn frame_records() -> Vec<FrameRecord> {
 /// is dp/du made orthogonal to the shading normal, so anisotropic BSDFs line up.
 #[test]
 fn surface_frames_match_mitsuba() {
-    let scene = Scene::load(&repo_path("tests/data/frames.xml"), &[]).unwrap();
+    let scene = Job::load(&repo_path("tests/data/frames.xml"), &[]).unwrap();
     let records = frame_records();
     assert!(records.len() >= 90, "{}", records.len());
     let mut checked = 0;
     for r in &records {
         let ray = Ray::new(Vec3::ZERO, r.d, f32::INFINITY);
-        let si = scene.intersect(&ray);
+        let si = scene.scene.intersect(&ray);
         let Some(m) = r.hit else {
             assert!(si.is_none(), "{}: Mitsuba misses, penumbra hits", r.name);
             continue;

@@ -12,22 +12,23 @@ use penumbra::progressive::{
     merge_parts, pass_spp, render_part, render_progressive, scene_hash, Checkpoint, PartPlan,
     ProgressiveSettings,
 };
+use penumbra::render::Job;
 use penumbra::scene::Scene;
 use std::path::PathBuf;
 
 const SEED: u64 = 1234;
 
-fn load_with_hash(rel: &str, defines: &[(&str, &str)]) -> (Scene, u64) {
+fn load_with_hash(rel: &str, defines: &[(&str, &str)]) -> (Job, u64) {
     let defines: Vec<(String, String)> = defines
         .iter()
         .map(|(k, v)| (k.to_string(), v.to_string()))
         .collect();
     let desc = Scene::load_description(&repo_path(rel), &defines).expect("loads");
     let hash = scene_hash(&desc);
-    (penumbra::scene::build::build(&desc).expect("builds"), hash)
+    (Job::build(&desc).expect("builds"), hash)
 }
 
-fn one_process(scene: &Scene, hash: u64, spp: u32) -> Film {
+fn one_process(scene: &Job, hash: u64, spp: u32) -> Film {
     let settings = ProgressiveSettings {
         spp,
         seed: SEED,
@@ -44,7 +45,7 @@ fn one_process(scene: &Scene, hash: u64, spp: u32) -> Film {
         .film
 }
 
-fn part(scene: &Scene, hash: u64, i: u32, n: u32, spp: u64, start: u64) -> (PathBuf, Checkpoint) {
+fn part(scene: &Job, hash: u64, i: u32, n: u32, spp: u64, start: u64) -> (PathBuf, Checkpoint) {
     let plan = PartPlan {
         index: i,
         count: n,
@@ -88,7 +89,7 @@ fn assert_bit_identical(a: &Film, b: &Film, what: &str) {
 fn any_split_in_any_order_merges_to_the_one_process_render() {
     // 64 × 64 px: passes of 64 spp, so 300 spp are 5 passes (4 × 64 + 44).
     let (scene, hash) = load_with_hash("scenes/cornell-box.xml", &[("res", "64")]);
-    assert_eq!(pass_spp(scene.width, scene.height), 64);
+    assert_eq!(pass_spp(scene.scene.width, scene.scene.height), 64);
     let single = one_process(&scene, hash, 300);
     for n in [1u32, 2, 3, 5] {
         let mut parts: Vec<_> = (0..n).map(|i| part(&scene, hash, i, n, 300, 0)).collect();

@@ -10,6 +10,7 @@ mod common;
 use common::*;
 use glam::{Vec2, Vec3};
 use penumbra::integrator::Integrator;
+use penumbra::render::Job;
 use penumbra::scene::Scene;
 use penumbra::study::stats::{normal_critical_z, sidak};
 
@@ -95,7 +96,7 @@ fn point_light_on_a_diffuse_plane_is_analytic() {
                 (x as f32 + ((k % n) as f32 + 0.5) / n as f32) / res as f32,
                 (y as f32 + ((k / n) as f32 + 0.5) / n as f32) / res as f32,
             );
-            let ray = scene.camera.generate_ray(s);
+            let ray = scene.scene.camera.generate_ray(s);
             let t = (-2.0 - ray.o.z) / ray.d.z;
             let p = ray.at(t).as_dvec3();
             let v = (light - Vec3::new(0.0, 0.0, 2.0)).as_dvec3() - p;
@@ -208,7 +209,7 @@ fn emitters_seen_directly() {
             ((i % 16) as f32 + 0.5) / 16.0,
             ((i / 16) as f32 + 0.5) / 16.0,
         );
-        let r = scene.camera.generate_ray(s);
+        let r = scene.scene.camera.generate_ray(s);
         // camera-relative coordinates: the rectangle lies at z = −2.2
         let p = r.at((-2.2 - r.o.z) / r.d.z);
         let m = p.x.abs().max(p.y.abs());
@@ -220,7 +221,7 @@ fn emitters_seen_directly() {
             None
         }
     };
-    let check = |scene: &Scene, inside: [f64; 3], outside: [f64; 3]| {
+    let check = |scene: &Job, inside: [f64; 3], outside: [f64; 3]| {
         let out = render_scene(scene, spp, SEED, None);
         let img = out.film.image();
         let (mut fails, mut worst) = (0, 0.0f64);
@@ -290,30 +291,30 @@ fn deterministic_at_any_thread_count() {
     assert_eq!(a.stats.paths, 64 * 16 * 8);
     assert!(a.stats.path.rays > a.stats.paths);
     // Rendering 8 spp as 3 + 5 (continuing the sample indices) adds up to the same sums.
-    let first = penumbra::render::render(
-        &scene,
-        &penumbra::render::RenderSettings {
-            spp: 3,
-            first_sample: 0,
-            seed: SEED,
-            threads: None,
-            sampler: None,
-        },
-        &|_, _| {},
-    )
-    .unwrap();
-    let second = penumbra::render::render(
-        &scene,
-        &penumbra::render::RenderSettings {
-            spp: 5,
-            first_sample: 3,
-            seed: SEED,
-            threads: None,
-            sampler: None,
-        },
-        &|_, _| {},
-    )
-    .unwrap();
+    let first = scene
+        .render(
+            &penumbra::render::RenderSettings {
+                spp: 3,
+                first_sample: 0,
+                seed: SEED,
+                threads: None,
+                sampler: None,
+            },
+            &|_, _| {},
+        )
+        .unwrap();
+    let second = scene
+        .render(
+            &penumbra::render::RenderSettings {
+                spp: 5,
+                first_sample: 3,
+                seed: SEED,
+                threads: None,
+                sampler: None,
+            },
+            &|_, _| {},
+        )
+        .unwrap();
     let mut sum = first.film.clone();
     sum.add(&second.film);
     assert_eq!(sum.spp(), 8.0);
@@ -355,7 +356,7 @@ fn unsupported_scenes_are_refused_in_one_line() {
         (base(ortho, ""), "pinhole"),
         (base(pinhole, medium), "media"),
     ] {
-        let e = Scene::from_xml_str(&xml, &repo_path("tests/inline.xml"), &[])
+        let e = Job::from_xml_str(&xml, &repo_path("tests/inline.xml"), &[])
             .err()
             .unwrap_or_else(|| panic!("{what}: accepted"))
             .to_string();
@@ -365,21 +366,24 @@ fn unsupported_scenes_are_refused_in_one_line() {
         r#"<integrator type="ptracer"/>"#,
         r#"<integrator type="ptracer"><integer name="max_depth" value="-2"/></integrator>"#,
     );
-    let e = Scene::from_xml_str(&bad, &repo_path("tests/inline.xml"), &[])
+    let e = Job::from_xml_str(&bad, &repo_path("tests/inline.xml"), &[])
         .err()
         .expect("max_depth -2 accepted")
         .to_string();
     assert!(e.contains("max_depth") && !e.contains('\n'), "{e}");
-    let mut s = scene_from_str(&base(pinhole, ""));
-    let e = s.use_integrator("bdpt").unwrap_err().to_string();
+    let mut desc =
+        Scene::description_from_xml_str(&base(pinhole, ""), &repo_path("tests/inline.xml"), &[])
+            .expect("description");
+    let e = desc.use_integrator("bdpt").unwrap_err().to_string();
     assert!(e.contains("bdpt") && !e.contains('\n'), "{e}");
-    s.use_integrator("ptracer").expect("ptracer");
+    desc.use_integrator("ptracer").expect("ptracer");
+    let s = Job::build(&desc).expect("builds");
     assert!(matches!(s.integrator, Integrator::ParticleTracer(_)));
 }
 
 /// A light tracer under a constant sky of `radiance`, nothing else in the scene, seen by a
 /// 60° pinhole of 4 × 4 pixels.
-fn sky_only(radiance: f32) -> Scene {
+fn sky_only(radiance: f32) -> Job {
     scene_from_str(&format!(
         r#"<scene version="3.0.0">
             <integrator type="ptracer"/>

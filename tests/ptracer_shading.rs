@@ -33,8 +33,8 @@ use common::*;
 use glam::{Vec2, Vec3};
 use penumbra::integrator::Integrator;
 use penumbra::math::simpson;
+use penumbra::render::Job;
 use penumbra::render::RenderOutput;
-use penumbra::scene::Scene;
 use penumbra::study::stats::{normal_critical_z, sidak};
 use penumbra::study::validation::Reference;
 
@@ -45,12 +45,16 @@ const SEED_LIGHT: u64 = 0x5ad2;
 const SEED_MITSUBA: u64 = 0x5ad3;
 
 /// One of the scenes of tests/data/ptracer-shading/ with `integrator` at `res` x `res`.
-fn scene(file: &str, integrator: &str, res: usize) -> Scene {
+fn scene(file: &str, integrator: &str, res: usize) -> Job {
     let s = load(
         &format!("tests/data/ptracer-shading/{file}"),
         &[("integrator", integrator), ("res", &res.to_string())],
     );
-    assert!(s.warnings.is_empty(), "{file}: {:?}", s.warnings);
+    assert!(
+        s.scene.warnings.is_empty(),
+        "{file}: {:?}",
+        s.scene.warnings
+    );
     s
 }
 
@@ -176,8 +180,11 @@ fn the_scene_needs_the_correction() {
     let (mut angle_lo, mut angle_hi) = (f32::INFINITY, 0.0f32);
     for i in 0..16 * 16 {
         let film = Vec2::new((i % 16) as f32 + 0.5, (i / 16) as f32 + 0.5) / 16.0;
-        let ray = s.camera.generate_ray(film);
-        let si = s.intersect(&ray).expect("every pixel centre sees the grid");
+        let ray = s.scene.camera.generate_ray(film);
+        let si = s
+            .scene
+            .intersect(&ray)
+            .expect("every pixel centre sees the grid");
         let (ng, ns) = (si.ng, si.frame.n);
         let angle = ng.dot(ns).clamp(-1.0, 1.0).acos().to_degrees();
         (angle_lo, angle_hi) = (angle_lo.min(angle), angle_hi.max(angle));

@@ -9,14 +9,14 @@ mod common;
 use common::*;
 use penumbra::integrator::radiosity::{RadiosityIntegrator, Solution};
 use penumbra::integrator::Integrator;
-use penumbra::scene::Scene;
+use penumbra::render::Job;
 use penumbra::study::stats::{normal_critical_z, sidak};
 use std::f64::consts::PI;
 
 /// Family-wise false-alarm rate of each statistical test below.
 const ALPHA: f64 = 1e-4;
 
-fn radiosity(scene: &Scene) -> &RadiosityIntegrator {
+fn radiosity(scene: &Job) -> &RadiosityIntegrator {
     match &scene.integrator {
         Integrator::Radiosity(r) => r,
         other => panic!("not radiosity: {other:?}"),
@@ -63,7 +63,7 @@ fn perpendicular_rectangles(w: f64, h: f64, l: f64) -> f64 {
 
 /// Two rectangles and a camera; `a` (shape 0) faces +z at z = 0, `b` is given by its
 /// transform. Emission on `a` only so that the scene has a light.
-fn two_rectangles(b_transform: &str, a_scale: &str, rays: u32) -> Scene {
+fn two_rectangles(b_transform: &str, a_scale: &str, rays: u32) -> Job {
     scene_from_str(&format!(
         r#"<scene version="3.0.0">
             <integrator type="radiosity">
@@ -89,7 +89,7 @@ fn two_rectangles(b_transform: &str, a_scale: &str, rays: u32) -> Scene {
 
 /// The estimated form factor from shape `from` to shape `to` (area-weighted over the
 /// patches of `from`), and the number of rays it rests on.
-fn shape_form_factor(scene: &Scene, sol: &Solution, from: u32, to: u32) -> (f64, f64) {
+fn shape_form_factor(scene: &Job, sol: &Solution, from: u32, to: u32) -> (f64, f64) {
     let r = radiosity(scene);
     let shape = |p: u32| r.layout.cell_shape(sol.patches[p as usize].cell);
     let (mut sum, mut area, mut n) = (0.0, 0.0, 0.0);
@@ -116,8 +116,8 @@ fn shape_form_factor(scene: &Scene, sol: &Solution, from: u32, to: u32) -> (f64,
 fn form_factors_match_the_closed_forms_for_rectangles() {
     let rays = 1 << 17;
     let z_max = normal_critical_z(sidak(ALPHA, 4));
-    let check = |scene: &Scene, from: u32, to: u32, exact: f64, what: &str| {
-        let sol = radiosity(scene).prepare(scene, 3);
+    let check = |scene: &Job, from: u32, to: u32, exact: f64, what: &str| {
+        let sol = radiosity(scene).prepare(&scene.scene, 3);
         let (f, n) = shape_form_factor(scene, &sol, from, to);
         let z = (f - exact) / (exact * (1.0 - exact) / n).sqrt();
         assert!(
@@ -174,7 +174,7 @@ fn form_factors_are_reciprocal_and_rows_sum_to_at_most_one() {
     );
     let r = radiosity(&scene);
     let n = r.params.rays_per_patch as f64;
-    let sol = r.prepare(&scene, 11);
+    let sol = r.prepare(&scene.scene, 11);
     let m = sol.patches.len();
     assert!((80..200).contains(&m), "{m} patches");
     let mut f = vec![vec![0.0f64; m]; m];
@@ -252,7 +252,7 @@ fn closed_furnace_has_the_analytic_radiosity() {
     let b_exact = PI * exact;
     let scene = scene_from_str(&xml("flat"));
     let r = radiosity(&scene);
-    let sol = r.prepare(&scene, 5);
+    let sol = r.prepare(&scene.scene, 5);
     let m = sol.patches.len();
     assert!(m >= 600, "{m} patches");
     // Rows: every ray hits the inside of the cube, but for the few that start within the
@@ -438,10 +438,10 @@ fn the_solution_is_kept_per_seed() {
     );
     let r = radiosity(&scene);
     assert!(r.current().is_none());
-    let a = r.prepare(&scene, 1);
-    assert!(std::sync::Arc::ptr_eq(&a, &r.prepare(&scene, 1)));
+    let a = r.prepare(&scene.scene, 1);
+    assert!(std::sync::Arc::ptr_eq(&a, &r.prepare(&scene.scene, 1)));
     assert!(std::sync::Arc::ptr_eq(&a, &r.current().expect("kept")));
-    let b = r.prepare(&scene, 2);
+    let b = r.prepare(&scene.scene, 2);
     assert!(!std::sync::Arc::ptr_eq(&a, &b));
     assert_ne!(
         a.radiosity, b.radiosity,
@@ -453,7 +453,7 @@ fn the_solution_is_kept_per_seed() {
 #[test]
 fn refusals_are_one_line_errors() {
     let scene = |integrator: &str, extra: &str| {
-        Scene::from_xml_str(
+        Job::from_xml_str(
             &format!(
                 r#"<scene version="3.0.0">
                 <integrator type="radiosity">{integrator}</integrator>
@@ -545,7 +545,7 @@ fn a_large_closed_furnace_reaches_the_requested_residual() {
         </shape>
     </scene>"#,
     );
-    let sol = radiosity(&scene).prepare(&scene, 3);
+    let sol = radiosity(&scene).prepare(&scene.scene, 3);
     assert!(sol.patches.len() >= 5000, "{} patches", sol.patches.len());
     assert!(
         sol.residual > 0.0 && sol.residual <= 1e-7,

@@ -7,6 +7,7 @@ use common::*;
 use glam::Vec3;
 use penumbra::geometry::Ray;
 use penumbra::io::exr::RgbImage;
+use penumbra::render::Job;
 use penumbra::render::RenderOutput;
 use penumbra::scene::Scene;
 use penumbra::study::metrics::{channel_means, z_test};
@@ -30,7 +31,7 @@ fn transformed_cornell(s: f64, o: f64) -> String {
 }
 
 fn render_image(xml: &str, spp: u32, seed: u64) -> (RgbImage, RenderOutput) {
-    let scene = Scene::from_xml_str(
+    let scene = Job::from_xml_str(
         xml,
         &repo_path("scenes/inline.xml"),
         &[("res".into(), "96".into())],
@@ -39,8 +40,8 @@ fn render_image(xml: &str, spp: u32, seed: u64) -> (RgbImage, RenderOutput) {
     let out = render_scene(&scene, spp, seed, None);
     assert_eq!(out.stats.nonfinite, 0);
     let img = RgbImage {
-        width: scene.width,
-        height: scene.height,
+        width: scene.scene.width,
+        height: scene.scene.height,
         rgb: out.film.image(),
         variance: Some(out.film.sample_variance()),
         attributes: BTreeMap::new(),
@@ -134,8 +135,7 @@ fn no_shipped_scene_produces_non_finite_samples() {
         if path.extension().and_then(|e| e.to_str()) != Some("xml") {
             continue;
         }
-        let scene =
-            Scene::load(&path, &[("res".into(), "32".into())]).expect("shipped scene loads");
+        let scene = Job::load(&path, &[("res".into(), "32".into())]).expect("shipped scene loads");
         let out = render_scene(&scene, 16, 5, None);
         assert_eq!(out.stats.nonfinite, 0, "{}", path.display());
         checked += 1;
@@ -198,7 +198,7 @@ fn no_ray_slips_through_a_closed_mesh_at_its_edges_and_vertices() {
             <transform name="to_world"><scale value="{scale}"/><translate value="{offset},{offset},{offset}"/></transform></shape></scene>"#,
             o2 = offset + 10.0 * scale
         );
-        let scene = Scene::from_xml_str(&xml, &dir.join("s.xml"), &[]).unwrap();
+        let scene = Job::from_xml_str(&xml, &dir.join("s.xml"), &[]).unwrap();
         // The build is camera-relative: the sphere's centre sits at (0, 0, -10 scale).
         let centre = Vec3::new(0.0, 0.0, -10.0 * scale);
         let mut targets: Vec<Vec3> = verts.clone();
@@ -214,7 +214,7 @@ fn no_ray_slips_through_a_closed_mesh_at_its_edges_and_vertices() {
             // from the centre outwards, and from outside inwards, aimed at the vertex/edge
             let from_inside = Ray::new(centre, (target - centre).normalize(), f32::INFINITY);
             assert!(
-                scene.intersect(&from_inside).is_some(),
+                scene.scene.intersect(&from_inside).is_some(),
                 "scale {scale} offset {offset}: inside ray {i} escaped"
             );
             // Within ~6° of the radial direction, so the ray enters the (convex) mesh at the
@@ -222,11 +222,11 @@ fn no_ray_slips_through_a_closed_mesh_at_its_edges_and_vertices() {
             let skew = Vec3::new(0.3, -0.2, 0.1) * ((i as f32 % 7.0 - 3.0) * 0.03);
             let o = target + (*t + skew).normalize() * (3.0 * scale);
             let d = (target - o).normalize();
-            let si = scene.intersect(&Ray::new(o, d, f32::INFINITY));
+            let si = scene.scene.intersect(&Ray::new(o, d, f32::INFINITY));
             let si = si
                 .unwrap_or_else(|| panic!("scale {scale} offset {offset}: outside ray {i} missed"));
             // ...and a ray continuing from that hit into the sphere must hit it again.
-            let next = scene.intersect(&Scene::spawn_ray(&si, d));
+            let next = scene.scene.intersect(&Scene::spawn_ray(&si, d));
             assert!(
                 next.is_some(),
                 "scale {scale} offset {offset}: ray {i} passed through the mesh"
@@ -268,7 +268,7 @@ fn duplicate_vertices_and_huge_coordinate_ranges_in_one_mesh() {
         <transform name="to_world"><lookat origin="0,0,1" target="0,0,0" up="0,1,0"/></transform>
         <film type="hdrfilm"><integer name="width" value="2"/><integer name="height" value="2"/><rfilter type="box"/></film></sensor>
         <shape type="obj"><string name="filename" value="ranges.obj"/><boolean name="face_normals" value="true"/></shape></scene>"#;
-    let scene = Scene::from_xml_str(xml, &dir.join("s.xml"), &[]).unwrap();
+    let scene = Job::from_xml_str(xml, &dir.join("s.xml"), &[]).unwrap();
     // camera-relative: the fan sits at z = -1
     let centre = Vec3::new(0.0, 0.0, -1.0);
     let mut targets = vec![centre];
@@ -287,6 +287,7 @@ fn duplicate_vertices_and_huge_coordinate_ranges_in_one_mesh() {
             let d = d.normalize();
             let o = *t - d * 0.5;
             let si = scene
+                .scene
                 .intersect(&Ray::new(o, d, f32::INFINITY))
                 .unwrap_or_else(|| panic!("target {i}: the ray slipped through the fan"));
             assert!(
@@ -301,7 +302,7 @@ fn duplicate_vertices_and_huge_coordinate_ranges_in_one_mesh() {
                 (si.ng + Vec3::X).normalize(),
                 (Vec3::Y - si.ng).normalize(),
             ] {
-                if let Some(next) = scene.intersect(&Scene::spawn_ray(&si, w)) {
+                if let Some(next) = scene.scene.intersect(&Scene::spawn_ray(&si, w)) {
                     assert!(
                         (next.p - si.p).length() > 1.0,
                         "target {i}: a ray leaving the fan re-hit it at {}",
@@ -360,8 +361,8 @@ fn extreme_materials_give_no_nan_or_inf() {
                 ng: Vec3::Z,
             };
             let bsdf = penumbra::material::Material::shading_bsdf(
-                &scene.materials,
-                scene.shapes[0].material,
+                &scene.scene.materials,
+                scene.scene.shapes[0].material,
                 &ctx,
             );
             let mut s = penumbra::sampler::SampleStream::new(5, i as u64, 0);

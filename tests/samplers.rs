@@ -6,7 +6,8 @@
 mod common;
 use common::*;
 use penumbra::io::exr;
-use penumbra::render::{render, RenderSettings};
+use penumbra::render::Job;
+use penumbra::render::RenderSettings;
 use penumbra::sampler::{Sampler, SamplerKind};
 use penumbra::study::stats::{normal_critical_z, sidak};
 
@@ -121,18 +122,18 @@ fn every_sampler_is_unbiased_on_the_cornell_box() {
     for name in KINDS {
         let s = sampler(name, 16);
         let spp = 64 * s.sample_count;
-        let out = render(
-            &scene,
-            &RenderSettings {
-                spp,
-                first_sample: 0,
-                seed: 5,
-                threads: None,
-                sampler: Some(s),
-            },
-            &|_, _| {},
-        )
-        .unwrap();
+        let out = scene
+            .render(
+                &RenderSettings {
+                    spp,
+                    first_sample: 0,
+                    seed: 5,
+                    threads: None,
+                    sampler: Some(s),
+                },
+                &|_, _| {},
+            )
+            .unwrap();
         let (mean, se) = image_mean_and_se(&out, spp);
         for c in 0..3 {
             let ref_mean = reference.rgb.iter().map(|p| p[c] as f64).sum::<f64>() / npx;
@@ -160,19 +161,19 @@ fn stratified_renders_are_deterministic_and_continue_exactly() {
     for name in KINDS {
         let s = sampler(name, 9);
         let run = |spp, first_sample, threads| {
-            render(
-                &scene,
-                &RenderSettings {
-                    spp,
-                    first_sample,
-                    seed: 11,
-                    threads,
-                    sampler: Some(s),
-                },
-                &|_, _| {},
-            )
-            .unwrap()
-            .film
+            scene
+                .render(
+                    &RenderSettings {
+                        spp,
+                        first_sample,
+                        seed: 11,
+                        threads,
+                        sampler: Some(s),
+                    },
+                    &|_, _| {},
+                )
+                .unwrap()
+                .film
         };
         let n = s.sample_count;
         let a = run(2 * n + 3, 0, Some(1));
@@ -240,21 +241,21 @@ fn cli_rounds_spp_and_resume_keeps_the_passes() {
     let resumed = exr::read(&out).unwrap();
     assert_eq!(resumed.spp(), Some(18.0));
 
-    let scene = penumbra::scene::Scene::load(&scene_path, &[("res".into(), "16".into())]).unwrap();
+    let scene = Job::load(&scene_path, &[("res".into(), "16".into())]).unwrap();
     let pass = |first_sample| {
-        render(
-            &scene,
-            &RenderSettings {
-                spp: 9,
-                first_sample,
-                seed: 4,
-                threads: None,
-                sampler: Some(sampler("stratified", 9)),
-            },
-            &|_, _| {},
-        )
-        .unwrap()
-        .film
+        scene
+            .render(
+                &RenderSettings {
+                    spp: 9,
+                    first_sample,
+                    seed: 4,
+                    threads: None,
+                    sampler: Some(sampler("stratified", 9)),
+                },
+                &|_, _| {},
+            )
+            .unwrap()
+            .film
     };
     let mut expected = pass(0);
     expected.add(&pass(9));

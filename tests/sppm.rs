@@ -8,7 +8,7 @@ mod common;
 use common::*;
 use penumbra::integrator::Integrator;
 use penumbra::math::simpson;
-use penumbra::scene::Scene;
+use penumbra::render::Job;
 use penumbra::study::stats::sidak;
 
 fn sensor(origin: &str, target: &str, res: usize) -> String {
@@ -44,7 +44,7 @@ fn t_quantile_7(alpha: f64) -> f64 {
 }
 
 /// Image means of `scene` rendered with 8 seeds: (mean, standard error).
-fn mean_over_seeds(scene: &Scene, spp: u32) -> ([f64; 3], [f64; 3]) {
+fn mean_over_seeds(scene: &Job, spp: u32) -> ([f64; 3], [f64; 3]) {
     let means: Vec<[f64; 3]> = (0..8u64)
         .map(|seed| {
             let out = render_scene(scene, spp, 0x5eed + seed, None);
@@ -172,27 +172,27 @@ fn bad_input_is_refused_in_one_line() {
         (r#"<float name="radius" value="1"/>"#, "", "radius"),
         ("", medium, "media"),
     ] {
-        let e = Scene::from_xml_str(&scene(params, extra), &repo_path("tests/inline.xml"), &[])
+        let e = Job::from_xml_str(&scene(params, extra), &repo_path("tests/inline.xml"), &[])
             .err()
             .unwrap_or_else(|| panic!("{what}: accepted"))
             .to_string();
         assert!(e.contains(what) && !e.contains('\n'), "{e}");
     }
     let s = scene_from_str(&scene("", ""));
-    let e = penumbra::render::render(
-        &s,
-        &penumbra::render::RenderSettings {
-            spp: 2,
-            first_sample: 2,
-            seed: 0,
-            threads: None,
-            sampler: None,
-        },
-        &|_, _| {},
-    )
-    .err()
-    .expect("a continued sppm render was accepted")
-    .to_string();
+    let e = s
+        .render(
+            &penumbra::render::RenderSettings {
+                spp: 2,
+                first_sample: 2,
+                seed: 0,
+                threads: None,
+                sampler: None,
+            },
+            &|_, _| {},
+        )
+        .err()
+        .expect("a continued sppm render was accepted")
+        .to_string();
     assert!(e.contains("sppm") && !e.contains('\n'), "{e}");
 }
 
@@ -206,8 +206,7 @@ fn bad_input_is_refused_in_one_line() {
 #[test]
 fn converges_to_the_path_traced_cornell_box() {
     use penumbra::study::metrics::error_metrics;
-    let mut scene = load("scenes/cornell-box.xml", &[("res", "128")]);
-    scene.use_integrator("sppm").expect("sppm");
+    let scene = load_with_integrator("scenes/cornell-box.xml", &[("res", "128")], "sppm");
     let reference = penumbra::study::validation::Reference::read(&repo_path(
         "validation/references/cornell-box.exr",
     ))
@@ -278,7 +277,7 @@ fn automatic_initial_radius_is_one_pixel_footprint() {
     let Integrator::Sppm(sppm) = &scene.integrator else {
         panic!("not sppm")
     };
-    let mut state = SppmState::new(&scene, sppm);
+    let mut state = SppmState::new(&scene.scene, sppm);
     let pool = rayon::ThreadPoolBuilder::new()
         .num_threads(2)
         .build()
@@ -290,7 +289,7 @@ fn automatic_initial_radius_is_one_pixel_footprint() {
         threads: Some(2),
         sampler: None,
     };
-    sppm.iterate(&scene, &settings, &pool, &mut state, 1, &|_, _| {});
+    sppm.iterate(&scene.scene, &settings, &pool, &mut state, 1, &|_, _| {});
     let want = 2.0 * 5.0 * 25f64.to_radians().tan() / 16.0;
     for (x, y) in [(7, 7), (8, 7), (7, 8), (8, 8)] {
         let r = state.radius[y * 16 + x];
@@ -371,11 +370,11 @@ fn checkpointed_and_resumed_bit_identical() {
     assert_eq!(resumed.film.spp(), spp as f64);
 
     // The other integrator's checkpoints, a target error, parts.
-    let mut path_scene = load(
+    let path_scene = load_with_integrator(
         "scenes/caustic-glass.xml",
         &[("res", "24"), ("integrator", "sppm")],
+        "path",
     );
-    path_scene.use_integrator("path").expect("path");
     let e = render_progressive(
         &path_scene,
         &settings,

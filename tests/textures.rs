@@ -47,7 +47,7 @@ fn a_bitmap_shared_by_several_textures_is_loaded_once() {
         bitmap("reflectance", r#"<boolean name="raw" value="true"/>"#),
     );
     let scene = scene_from_str(&xml);
-    let images: Vec<_> = bitmaps(&scene.materials)
+    let images: Vec<_> = bitmaps(&scene.scene.materials)
         .into_iter()
         .map(|t| match t {
             Texture::Bitmap(b) => b.image().clone(),
@@ -76,13 +76,13 @@ fn prebuilt_bsdfs_equal_the_ones_built_at_each_hit() {
     for y in 0..n {
         for x in 0..n {
             let s = Vec2::new((x as f32 + 0.5) / n as f32, (y as f32 + 0.5) / n as f32);
-            let ray = scene.camera.generate_ray(s);
-            let Some(si) = scene.intersect(&ray) else {
+            let ray = scene.scene.camera.generate_ray(s);
+            let Some(si) = scene.scene.intersect(&ray) else {
                 continue;
             };
-            let reference = scene.shading_bsdf(&si);
+            let reference = scene.scene.shading_bsdf(&si);
             let buf_at: *const penumbra::material::ShadingBsdf = &buf;
-            let bsdf = scene.bsdf_at(&si, &mut buf);
+            let bsdf = scene.scene.bsdf_at(&si, &mut buf);
             if std::ptr::eq(bsdf, buf_at) {
                 built += 1;
             } else {

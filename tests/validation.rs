@@ -157,8 +157,8 @@ fn negative_controls(
         r.study.ladder.film.image(),
         r.study.ladder.film.sample_variance(),
     );
-    let mut scene = entry.load_scene(root).expect("scene");
-    let filter = scene.filter;
+    let mut scene = entry.load_job(root).expect("scene");
+    let filter = scene.scene.filter;
     let checks_fail = |rgb: &[[f32; 3]], var: &[[f32; 3]]| {
         let z = pixel_z_test(rgb, var, spp as f64, &r.reference).expect("z-test");
         !z.passed() || !mean_check(rgb, var, spp as f64, &r.reference, filter).passed()
@@ -217,7 +217,7 @@ fn checks_reject_the_wrong_reference() {
     let list = load_scene_list(&root).expect("scene list");
     let get = |name: &str| list.iter().find(|s| s.name == name).expect(name);
     let (full, direct) = (get("cornell-box"), get("cornell-depth2"));
-    let scene = full.load_scene(&root).expect("scene");
+    let scene = full.load_job(&root).expect("scene");
     let wrong = direct.load_reference(&root).expect("reference");
     let r = study(&scene, &wrong, &spp_ladder(64), SEED, None, &mut |_| {}).expect("study");
     assert!(!r.z.passed(), "z-test passed: {:?}", r.z);

@@ -9,7 +9,7 @@ mod common;
 use common::*;
 use penumbra::io::exr;
 use penumbra::io::exr::RgbImage;
-use penumbra::scene::Scene;
+use penumbra::render::Job;
 use penumbra::study::metrics::{channel_means, z_test, VARIANCE_FLOOR};
 use penumbra::study::stats::{normal_critical_z, sidak};
 use std::collections::BTreeMap;
@@ -21,13 +21,13 @@ const REF_SPP: f64 = 4096.0;
 /// the image mean. Neighbouring pixels of a filtered image share samples, so their values
 /// are correlated; the image mean is still (nearly) the plain mean of all samples, whose
 /// variance is mean(σ²) / (N · spp).
-fn unfiltered_variance_sum(scene: &Scene, var: &[[f32; 3]], c: usize) -> f64 {
-    let (w, h) = (scene.width, scene.height);
+fn unfiltered_variance_sum(scene: &Job, var: &[[f32; 3]], c: usize) -> f64 {
+    let (w, h) = (scene.scene.width, scene.scene.height);
     let kx: Vec<f64> = (0..w)
-        .map(|x| scene.filter.variance_factor_1d(x, w))
+        .map(|x| scene.scene.filter.variance_factor_1d(x, w))
         .collect();
     let ky: Vec<f64> = (0..h)
-        .map(|y| scene.filter.variance_factor_1d(y, h))
+        .map(|y| scene.scene.filter.variance_factor_1d(y, h))
         .collect();
     (0..w * h)
         .map(|i| var[i][c] as f64 / (kx[i % w] * ky[i / w]))
@@ -74,7 +74,7 @@ fn compare(
     let reference = exr::read(&repo_path(reference)).expect("reference");
     let scene = load(scene_file, &[("res", "128")]);
     assert_eq!(
-        (scene.width, scene.height),
+        (scene.scene.width, scene.scene.height),
         (reference.width, reference.height)
     );
     let start = std::time::Instant::now();
@@ -85,8 +85,8 @@ fn compare(
     let mut results = Vec::new();
     for &scale in scales {
         let ours = RgbImage {
-            width: scene.width,
-            height: scene.height,
+            width: scene.scene.width,
+            height: scene.scene.height,
             rgb: img.iter().map(|p| p.map(|x| x * scale)).collect(),
             variance: Some(var.iter().map(|p| p.map(|x| x * scale * scale)).collect()),
             attributes: BTreeMap::new(),

@@ -8,12 +8,13 @@ mod common;
 use common::*;
 use glam::{Vec2, Vec3};
 use penumbra::integrator::PathStats;
+use penumbra::render::Job;
 use penumbra::sampler::SampleStream;
 use penumbra::scene::Scene;
 
 /// A diffuse plane (reflectance 0.5) at y = 0 under a point light of intensity 4 at
 /// (0.3, 2, -0.2), seen from (0, 4, 3).
-fn plane_scene(max_depth: u32, extra: &str) -> Scene {
+fn plane_scene(max_depth: u32, extra: &str) -> Job {
     scene_from_str(&plane_xml(max_depth, extra))
 }
 
@@ -39,12 +40,12 @@ fn plane_xml(max_depth: u32, extra: &str) -> String {
     )
 }
 
-fn li(scene: &Scene, pixel: Vec2, stream: u64) -> Vec3 {
-    let ray = scene.camera.generate_ray(pixel / 16.0);
+fn li(scene: &Job, pixel: Vec2, stream: u64) -> Vec3 {
+    let ray = scene.scene.camera.generate_ray(pixel / 16.0);
     let mut sampler = SampleStream::new(stream, 7, 0);
     scene
         .integrator
-        .li(scene, ray, &mut sampler, &mut PathStats::default())
+        .li(&scene.scene, ray, &mut sampler, &mut PathStats::default())
 }
 
 /// The plane's direct light from the point light at the camera-relative point `p`:
@@ -73,8 +74,8 @@ fn direct_light_of_a_point_light_is_the_analytic_value() {
     for y in 0..16 {
         for x in 0..16 {
             let pixel = Vec2::new(x as f32 + 0.5, y as f32 + 0.5);
-            let ray = scene.camera.generate_ray(pixel / 16.0);
-            let Some(si) = scene.intersect(&ray) else {
+            let ray = scene.scene.camera.generate_ray(pixel / 16.0);
+            let Some(si) = scene.scene.intersect(&ray) else {
                 continue;
             };
             let got = li(&scene, pixel, 0);
@@ -111,8 +112,8 @@ fn without_shadows_an_occluder_casts_no_shadow() {
     for y in 0..16 {
         for x in 0..16 {
             let pixel = Vec2::new(x as f32 + 0.5, y as f32 + 0.5);
-            let ray = shadows.camera.generate_ray(pixel / 16.0);
-            let Some(si) = shadows.intersect(&ray) else {
+            let ray = shadows.scene.camera.generate_ray(pixel / 16.0);
+            let Some(si) = shadows.scene.intersect(&ray) else {
                 continue;
             };
             if si.p.y > -3.5 {
@@ -147,11 +148,13 @@ fn rays_and_bounces_are_counted() {
 }
 
 /// The radiance of the image centre's camera ray and the counters of computing it.
-fn centre_pixel_with_stats(scene: &Scene) -> (Vec3, PathStats) {
-    let ray = scene.camera.generate_ray(Vec2::splat(0.5));
+fn centre_pixel_with_stats(scene: &Job) -> (Vec3, PathStats) {
+    let ray = scene.scene.camera.generate_ray(Vec2::splat(0.5));
     let mut stats = PathStats::default();
     let mut sampler = SampleStream::new(0, 7, 0);
-    let l = scene.integrator.li(scene, ray, &mut sampler, &mut stats);
+    let l = scene
+        .integrator
+        .li(&scene.scene, ray, &mut sampler, &mut stats);
     (l, stats)
 }
 
@@ -229,17 +232,20 @@ fn glass_splits_into_fresnel_weighted_reflection_and_refraction() {
     for y in 0..16 {
         for x in 0..16 {
             let pixel = Vec2::new(x as f32 + 0.5, y as f32 + 0.5);
-            let ray = with_glass.camera.generate_ray(pixel / 16.0);
-            let Some(si) = with_glass.intersect(&ray) else {
+            let ray = with_glass.scene.camera.generate_ray(pixel / 16.0);
+            let Some(si) = with_glass.scene.intersect(&ray) else {
                 continue;
             };
             let d = ray.d.normalize();
             let reflected = Vec3::new(d.x, -d.y, d.z);
             let next = Scene::spawn_ray(&si, reflected);
-            let Some(hit) = with_glass.intersect(&next) else {
+            let Some(hit) = with_glass.scene.intersect(&next) else {
                 continue;
             };
-            if with_glass.shapes[hit.shape as usize].emitter.is_none() {
+            if with_glass.scene.shapes[hit.shape as usize]
+                .emitter
+                .is_none()
+            {
                 continue;
             }
             // Light under the glass is blocked by it (its shadow rays hit the glass), so
@@ -277,7 +283,7 @@ fn bad_parameters_are_one_line_errors() {
             r#"<scene version="3.0.0"><integrator type="whitted">{xml}</integrator>
                <sensor type="perspective"/></scene>"#
         );
-        let err = Scene::from_xml_str(&doc, &repo_path("tests/inline.xml"), &[])
+        let err = Job::from_xml_str(&doc, &repo_path("tests/inline.xml"), &[])
             .err()
             .unwrap_or_else(|| panic!("{xml} was accepted"))
             .to_string();

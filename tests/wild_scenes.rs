@@ -5,7 +5,7 @@
 
 mod common;
 use common::{render_scene, repo_path};
-use penumbra::scene::Scene;
+use penumbra::render::Job;
 
 #[test]
 fn every_wild_scene_loads_unchanged_and_renders() {
@@ -45,10 +45,10 @@ fn every_wild_scene_loads_unchanged_and_renders() {
             }
         }
         let path = repo_path(&format!("scenes/wild/{}", e["scene"].as_str().unwrap()));
-        match Scene::load(&path, &defines) {
+        match Job::load(&path, &defines) {
             Err(err) => failures.push(format!("{name}: {err}")),
             Ok(scene) => {
-                assert_eq!(scene.width, 16, "{name}");
+                assert_eq!(scene.scene.width, 16, "{name}");
                 let out = render_scene(&scene, 2, 1, None);
                 assert_eq!(out.stats.nonfinite, 0, "{name}");
                 let img = out.film.image();

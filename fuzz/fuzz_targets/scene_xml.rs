@@ -4,25 +4,25 @@
 #![no_main]
 
 use libfuzzer_sys::fuzz_target;
-use penumbra::render::{render, RenderSettings};
-use penumbra::scene::Scene;
+use penumbra::render::{Job, RenderSettings};
 use std::path::Path;
 
 fuzz_target!(|data: &[u8]| {
     let Ok(text) = std::str::from_utf8(data) else {
         return;
     };
-    let Ok(scene) = Scene::from_xml_str(text, Path::new("fuzz/scene.xml"), &[])
+    let Ok(job) = Job::from_xml_str(text, Path::new("fuzz/scene.xml"), &[])
     else {
         return;
     };
-    if scene.width * scene.height <= 256 {
+    if job.scene.width * job.scene.height <= 256 {
         let settings = RenderSettings {
             spp: 1,
             seed: 0,
             threads: Some(1),
             first_sample: 0,
+            sampler: None,
         };
-        let _ = render(&scene, &settings, &|_, _| {});
+        let _ = job.render(&settings, &|_, _| {});
     }
 });

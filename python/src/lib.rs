@@ -196,7 +196,7 @@ fn json_to_py<'py>(py: Python<'py>, json: &str) -> PyResult<Bound<'py, PyAny>> {
 struct Scene {
     path: PathBuf,
     defines: Vec<(String, String)>,
-    scene: penumbra::scene::Scene,
+    job: penumbra::render::Job,
     /// The sampler the scene file declares (a render with another spp replaces it).
     sampler: penumbra::sampler::Sampler,
     stats: Option<Py<PyDict>>,
@@ -206,24 +206,24 @@ struct Scene {
 impl Scene {
     #[getter]
     fn width(&self) -> usize {
-        self.scene.width
+        self.job.scene.width
     }
     #[getter]
     fn height(&self) -> usize {
-        self.scene.height
+        self.job.scene.height
     }
     /// The scene's samples per pixel (its sampler's sample_count).
     #[getter]
     fn spp(&self) -> u32 {
-        self.scene.sample_count
+        self.job.scene.sample_count
     }
     #[getter]
     fn seed(&self) -> u64 {
-        self.scene.seed
+        self.job.scene.seed
     }
     #[getter]
     fn warnings(&self) -> Vec<String> {
-        self.scene.warnings.clone()
+        self.job.scene.warnings.clone()
     }
     #[getter]
     fn path(&self) -> PathBuf {
@@ -239,9 +239,9 @@ impl Scene {
         format!(
             "<penumbra.Scene {} {}x{}, {} spp>",
             self.path.display(),
-            self.scene.width,
-            self.scene.height,
-            self.scene.sample_count
+            self.job.scene.width,
+            self.job.scene.height,
+            self.job.scene.sample_count
         )
     }
 
@@ -270,7 +270,7 @@ impl Scene {
         let time_limit = positive("time_limit", time_limit)?.map(Duration::from_secs_f64);
         let spp = match spp {
             Some(n) => {
-                let (rounded, warning) = self.scene.set_sample_count(n);
+                let (rounded, warning) = self.job.scene.set_sample_count(n);
                 if let Some(w) = warning {
                     let warnings = py.import("warnings")?;
                     warnings.call_method1("warn", (format!("{w} (spp)"),))?;
@@ -278,14 +278,14 @@ impl Scene {
                 rounded
             }
             None => {
-                self.scene.sampler = self.sampler;
-                self.scene.sample_count
+                self.job.scene.sampler = self.sampler;
+                self.job.scene.sample_count
             }
         };
         let stop = Arc::new(AtomicBool::new(false));
         let settings = ProgressiveSettings {
             spp,
-            seed: seed.unwrap_or(self.scene.seed),
+            seed: seed.unwrap_or(self.job.scene.seed),
             threads,
             time_limit,
             target_rel_error: None,
@@ -294,9 +294,9 @@ impl Scene {
             scene_hash: 0,
             stop: Some(stop.clone()),
         };
-        let scene = &self.scene;
+        let job = &self.job;
         let (progress, reason) = run_interruptible(py, &stop, || {
-            progressive::render_progressive(scene, &settings, None, &|_| {})
+            progressive::render_progressive(job, &settings, None, &|_| {})
         })?
         .map_err(err)?;
         let film = &progress.film;
@@ -326,12 +326,12 @@ impl Scene {
 fn load(path: PathBuf, defines: Option<&Bound<'_, PyDict>>) -> PyResult<Scene> {
     let defines = defines_of(defines)?;
     let desc = penumbra::scene::Scene::load_description(&path, &defines).map_err(err)?;
-    let scene = penumbra::scene::build::build(&desc).map_err(err)?;
+    let job = penumbra::render::Job::build(&desc).map_err(err)?;
     Ok(Scene {
         path,
         defines,
-        sampler: scene.sampler,
-        scene,
+        sampler: job.scene.sampler,
+        job,
         stats: None,
     })
 }
@@ -412,7 +412,7 @@ fn converge<'py>(
     let first_seed = seed.unwrap_or(variants[0].description.sensor.sampler.seed);
     let records = PyList::empty(py);
     for variant in &variants {
-        let built = penumbra::scene::build::build(&variant.description).map_err(err)?;
+        let built = penumbra::render::Job::build(&variant.description).map_err(err)?;
         for k in 0..seeds as u64 {
             let seed = first_seed.wrapping_add(k);
             let run = py

@@ -7,8 +7,7 @@
 use glam::Vec3;
 use penumbra::accel::Accel;
 use penumbra::geometry::Ray;
-use penumbra::render::{render, RenderSettings};
-use penumbra::scene::Scene;
+use penumbra::render::{Job, RenderSettings};
 use penumbra::shape::{Mesh, Shape, ShapeGeometry};
 use std::path::Path;
 use std::process::Command;
@@ -129,12 +128,12 @@ fn tris(max: usize) {
     }
 }
 
-fn cornell(res: u32) -> Scene {
+fn cornell(res: u32) -> Job {
     let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes/cornell-box.xml");
-    Scene::load(&path, &[("res".into(), res.to_string())]).expect("cornell box")
+    Job::load(&path, &[("res".into(), res.to_string())]).expect("cornell box")
 }
 
-fn time_render(scene: &Scene, spp: u32, threads: Option<usize>) -> f64 {
+fn time_render(job: &Job, spp: u32, threads: Option<usize>) -> f64 {
     let s = RenderSettings {
         spp,
         seed: 1,
@@ -142,7 +141,7 @@ fn time_render(scene: &Scene, spp: u32, threads: Option<usize>) -> f64 {
         sampler: None,
         first_sample: 0,
     };
-    render(scene, &s, &|_, _| {}).expect("render").stats.seconds
+    job.render(&s, &|_, _| {}).expect("render").stats.seconds
 }
 
 fn pixels() {

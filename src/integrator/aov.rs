@@ -14,51 +14,16 @@
 //! nested integrators give R, G, B without an alpha channel.
 //!
 //! Each channel group (a nested integrator's RGB, or one AOV) is rendered as a pass of its
-//! own with the same seed, so all groups see the same pixel samples ([`render_channels`]).
+//! own with the same seed, so all groups see the same pixel samples
+//! ([`crate::render::render_channels`]).
 
 use crate::bsdf::Spectrum;
-use crate::error::Result;
 use crate::geometry::Ray;
 use crate::integrator::{Integrator, PathStats};
-use crate::render::{render, RenderSettings, RenderStats};
 use crate::sampler::SampleStream;
+pub use crate::scene::description::AovKind;
 use crate::scene::Scene;
 use glam::Vec3;
-
-/// The AOV types penumbra supports (Mitsuba's names).
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub enum AovKind {
-    Depth,
-    Position,
-    GeoNormal,
-    ShNormal,
-    Uv,
-    Albedo,
-}
-
-impl AovKind {
-    pub fn from_name(name: &str) -> Option<AovKind> {
-        Some(match name {
-            "depth" => AovKind::Depth,
-            "position" => AovKind::Position,
-            "geo_normal" => AovKind::GeoNormal,
-            "sh_normal" => AovKind::ShNormal,
-            "uv" => AovKind::Uv,
-            "albedo" => AovKind::Albedo,
-            _ => return None,
-        })
-    }
-
-    /// The channel suffixes Mitsuba writes for this type.
-    pub fn channels(self) -> &'static [&'static str] {
-        match self {
-            AovKind::Depth => &["T"],
-            AovKind::Position | AovKind::GeoNormal | AovKind::ShNormal => &["X", "Y", "Z"],
-            AovKind::Uv => &["U", "V"],
-            AovKind::Albedo => &["R", "G", "B"],
-        }
-    }
-}
 
 #[derive(Clone, Debug)]
 pub struct AovIntegrator {
@@ -119,59 +84,4 @@ impl AovIntegrator {
             }
         }
     }
-}
-
-/// The channels of an AOV render: `(name, values)` per channel, row-major from the top row.
-pub type Channels = crate::io::exr::NamedChannels;
-
-/// Renders every channel group of the scene's `aov` integrator at `spp` with `seed`, one
-/// group after the other (the scene's integrator is stepped through the groups and restored).
-pub fn render_channels(
-    scene: &mut Scene,
-    spp: u32,
-    seed: u64,
-    threads: Option<usize>,
-) -> Result<(Channels, RenderStats)> {
-    let Integrator::Aov(aov) = &scene.integrator else {
-        return Err(crate::Error::Invalid(
-            "render_channels needs the aov integrator".into(),
-        ));
-    };
-    let original = aov.clone();
-    let groups = original.groups();
-    let mut channels = Vec::new();
-    let mut stats = RenderStats::default();
-    let settings = RenderSettings {
-        spp,
-        seed,
-        threads,
-        sampler: None,
-        first_sample: 0,
-    };
-    let mut result = Ok(());
-    for (group, (name, suffixes)) in groups.iter().enumerate() {
-        let mut aov = original.clone();
-        aov.group = group;
-        scene.integrator = Integrator::Aov(aov);
-        let out = match render(scene, &settings, &|_, _| {}) {
-            Ok(out) => out,
-            Err(e) => {
-                result = Err(e);
-                break;
-            }
-        };
-        let image = out.film.image();
-        for (c, suffix) in suffixes.iter().enumerate() {
-            channels.push((
-                format!("{name}.{suffix}"),
-                image.iter().map(|p| p[c]).collect(),
-            ));
-        }
-        stats.paths += out.stats.paths;
-        stats.path += out.stats.path;
-        stats.nonfinite += out.stats.nonfinite;
-        stats.seconds += out.stats.seconds;
-    }
-    scene.integrator = Integrator::Aov(original);
-    result.map(|()| (channels, stats))
 }

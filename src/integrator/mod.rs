@@ -2,6 +2,7 @@
 //! share (emission where a ray ends, and one next-event estimation sample).
 
 pub mod aov;
+pub mod build;
 pub mod direct;
 pub mod path;
 pub mod ptracer;

@@ -47,6 +47,7 @@ use crate::integrator::{emission_at, sample_emitter, PathStats};
 use crate::material::Material;
 use crate::sampler::SampleStream;
 use crate::sampling::{square_to_cosine_hemisphere, square_to_uniform_triangle};
+pub use crate::scene::description::{RadiosityParams, Shading};
 use crate::scene::Scene;
 use crate::shape::{ShapeGeometry, SurfaceInteraction};
 use glam::{Vec2, Vec3};
@@ -64,52 +65,6 @@ pub const MAX_CELLS: u64 = 1 << 22;
 /// Shooting sweeps before giving up on the residual (reflectance 1 in a closed scene never
 /// converges); the residual reached is kept in [`Solution::residual`].
 pub const MAX_SWEEPS: u32 = 256;
-
-/// How the image is made from the patch solution.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub enum Shading {
-    /// Each patch's radiance B/π, constant over the patch.
-    Flat,
-    /// A final gather: exact emission and direct light at the pixel, indirect light from
-    /// the patches one cosine-distributed ray away.
-    Gather,
-}
-
-impl Shading {
-    pub fn from_name(name: &str) -> Option<Self> {
-        match name {
-            "flat" => Some(Shading::Flat),
-            "gather" => Some(Shading::Gather),
-            _ => None,
-        }
-    }
-}
-
-/// The integrator's XML parameters.
-#[derive(Clone, Debug, PartialEq)]
-pub struct RadiosityParams {
-    /// Target number of patches over all surfaces (used when `patch_size` is 0).
-    pub patch_count: u32,
-    /// Target patch edge length in scene units (0: use `patch_count`).
-    pub patch_size: f32,
-    /// Form-factor rays from each patch side.
-    pub rays_per_patch: u32,
-    /// Shooting stops when the unshot power is below this share of the emitted power.
-    pub residual: f32,
-    pub shading: Shading,
-}
-
-impl Default for RadiosityParams {
-    fn default() -> Self {
-        RadiosityParams {
-            patch_count: 1024,
-            patch_size: 0.0,
-            rays_per_patch: 1024,
-            residual: 1e-4,
-            shading: Shading::Gather,
-        }
-    }
-}
 
 /// How one shape is divided into cells.
 #[derive(Clone, Debug)]

@@ -37,7 +37,7 @@ use arrayvec::ArrayVec;
 use glam::{Vec2, Vec3};
 
 /// The largest `max_depth` accepted.
-pub const MAX_DEPTH: u32 = 20;
+pub use crate::scene::description::WHITTED_MAX_DEPTH as MAX_DEPTH;
 
 #[derive(Clone, Debug)]
 pub struct WhittedIntegrator {

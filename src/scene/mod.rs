@@ -10,10 +10,9 @@ pub mod xml;
 use crate::accel::Accel;
 use crate::camera::Camera;
 use crate::emitter::{DirectionSample, Emitter};
-use crate::error::{Error, Result};
+use crate::error::Result;
 use crate::film::Filter;
 use crate::geometry::{offset_ray_origin, Ray, SHADOW_EPSILON};
-use crate::integrator::Integrator;
 use crate::material::{Material, ShadingBsdf, ShadingContext};
 use crate::shape::{Shape, SurfaceInteraction};
 use crate::texture::TextureContext;
@@ -51,7 +50,9 @@ pub struct Scene {
     pub sampler: crate::sampler::Sampler,
     /// The sampler's `seed`.
     pub seed: u64,
-    pub integrator: Integrator,
+    /// The camera's world position: the scene is built around the camera (at the origin), so
+    /// a world-space position is `p + world_origin`.
+    pub world_origin: Vec3,
     /// Things the user should know that are not errors (skipped faces, no emitter, ...).
     pub warnings: Vec<String>,
     /// Index of the environment emitter (constant or envmap), at most one as in Mitsuba.
@@ -100,12 +101,7 @@ impl Scene {
         (sampler.sample_count, warning)
     }
 
-    /// Loads a Mitsuba XML file with `-D name=value` overrides and builds it.
-    pub fn load(path: &Path, defines: &[(String, String)]) -> Result<Scene> {
-        build::build(&Self::load_description(path, defines)?)
-    }
-
-    /// The typed description of a Mitsuba XML file (what [`Scene::load`] builds).
+    /// The typed description of a Mitsuba XML file (what [`build::build`] builds).
     pub fn load_description(
         path: &Path,
         defines: &[(String, String)],
@@ -113,98 +109,13 @@ impl Scene {
         description::from_xml(&xml::load_file(path, defines)?)
     }
 
-    /// Builds a scene from XML text; `path` locates it for messages and relative files.
-    pub fn from_xml_str(text: &str, path: &Path, defines: &[(String, String)]) -> Result<Scene> {
-        let doc = xml::load_str(text, path, defines)?;
-        let desc = description::from_xml(&doc)?;
-        build::build(&desc)
-    }
-
-    /// Replaces the integrator by `kind`, which takes the current one's `max_depth`,
-    /// `rr_depth` and `hide_emitters`: `path`, `ptracer` (light tracing), `sppm` (photon
-    /// mapping with its defaults: one photon per pixel per iteration, automatic radius,
-    /// α = 2/3), `whitted` (one sample per area light) or `radiosity` (its defaults: 1024
-    /// patches, 1024 rays each, final gather). For rendering a
-    /// scene written for the path tracer with a light-path integrator (the validation
-    /// study's light-tracing entries, `penumbra render --integrator`).
-    pub fn use_integrator(&mut self, kind: &str) -> Result<()> {
-        self.warnings
-            .retain(|w| w != description::NO_INTEGRATOR_WARNING);
-        use crate::integrator::{Integrator, ParticleTracer, PathIntegrator};
-        let (max_depth, rr_depth, hide_emitters) =
-            match &self.integrator {
-                Integrator::Path(p) => (p.max_depth, p.rr_depth, p.hide_emitters),
-                Integrator::VolPath(p) => (p.max_depth, p.rr_depth, p.hide_emitters),
-                Integrator::VolPathMis(p) => (p.max_depth, p.rr_depth, p.hide_emitters),
-                Integrator::ParticleTracer(p) => (p.max_depth, p.rr_depth, p.hide_emitters),
-                Integrator::Sppm(p) => (p.max_depth, 5, false),
-                Integrator::Direct(d) => (2, 5, d.hide_emitters),
-                Integrator::Whitted(w) => (w.max_depth, 5, w.hide_emitters),
-                Integrator::Radiosity(_) => (8, 5, false),
-                Integrator::Aov(_) => return Err(Error::Invalid(
-                    "an aov scene cannot switch integrator (name one inside the aov integrator)"
-                        .into(),
-                )),
-            };
-        self.integrator = match kind {
-            "path" => Integrator::Path(PathIntegrator {
-                max_depth,
-                rr_depth,
-                hide_emitters,
-            }),
-            "ptracer" => {
-                crate::integrator::ptracer::check_scene(
-                    "ptracer",
-                    true,
-                    &self.camera,
-                    !self.media.is_empty(),
-                )?;
-                Integrator::ParticleTracer(ParticleTracer {
-                    max_depth,
-                    rr_depth,
-                    hide_emitters,
-                    samples_per_pass: None,
-                })
-            }
-            "sppm" => {
-                crate::integrator::ptracer::check_scene(
-                    "sppm",
-                    false,
-                    &self.camera,
-                    !self.media.is_empty(),
-                )?;
-                Integrator::Sppm(crate::integrator::Sppm {
-                    max_depth,
-                    photon_count: (self.width * self.height) as u64,
-                    initial_radius: 0.0,
-                    alpha: 2.0 / 3.0,
-                })
-            }
-            "whitted" => {
-                use crate::integrator::whitted::{WhittedIntegrator, MAX_DEPTH};
-                if !(1..=MAX_DEPTH).contains(&max_depth) {
-                    return Err(Error::Invalid(format!(
-                        "whitted needs a max_depth in [1, {MAX_DEPTH}]; the scene's integrator has {}",
-                        if max_depth == u32::MAX { "-1 (unbounded)".to_string() } else { max_depth.to_string() }
-                    )));
-                }
-                Integrator::Whitted(WhittedIntegrator {
-                    max_depth,
-                    emitter_samples: 1,
-                    hide_emitters,
-                    shadows: true,
-                })
-            }
-            "radiosity" => Integrator::Radiosity(
-                crate::integrator::radiosity::RadiosityIntegrator::new(self, Default::default())?,
-            ),
-            _ => {
-                return Err(Error::Invalid(format!(
-                "unknown integrator '{kind}' (expected path, ptracer, sppm, whitted or radiosity)"
-            )))
-            }
-        };
-        Ok(())
+    /// The typed description of XML text; `path` locates it for messages and relative files.
+    pub fn description_from_xml_str(
+        text: &str,
+        path: &Path,
+        defines: &[(String, String)],
+    ) -> Result<description::SceneDescription> {
+        description::from_xml(&xml::load_str(text, path, defines)?)
     }
 
     /// The closest surface hit by `ray`.

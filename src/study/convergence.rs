@@ -19,9 +19,8 @@
 
 use crate::error::{Error, Result};
 use crate::film::Film;
-use crate::render::{render, RenderSettings, RenderStats};
+use crate::render::{render, Job, RenderSettings, RenderStats};
 use crate::sampler::{Sampler, SamplerKind};
-use crate::scene::Scene;
 use crate::study::metrics::{error_metrics, ErrorMetrics};
 
 /// Steps whose RMSE is at most this multiple of the reference's noise floor are left out of
@@ -109,7 +108,7 @@ pub fn mean_of(values: &[[f32; 3]]) -> f64 {
 /// a step that rounds to the previous one's count is left out). After each step `on_step`
 /// sees its time and error against `reference` (same resolution).
 pub fn run_ladder(
-    scene: &Scene,
+    job: &Job,
     steps: &[u32],
     seed: u64,
     threads: Option<usize>,
@@ -117,7 +116,7 @@ pub fn run_ladder(
     on_step: &mut dyn FnMut(&LadderStep),
 ) -> Result<Ladder> {
     run_ladder_with_film(
-        scene,
+        job,
         steps,
         seed,
         threads,
@@ -132,7 +131,7 @@ pub fn run_ladder(
 /// time reaches `max_seconds` (to compare integrators of very different cost per sample
 /// over the same time budget).
 pub fn run_ladder_with_film(
-    scene: &Scene,
+    job: &Job,
     steps: &[u32],
     seed: u64,
     threads: Option<usize>,
@@ -140,6 +139,7 @@ pub fn run_ladder_with_film(
     max_seconds: Option<f64>,
     on_step: &mut dyn FnMut(&LadderStep, &Film),
 ) -> Result<Ladder> {
+    let scene = &job.scene;
     if reference.len() != scene.width * scene.height {
         return Err(Error::Invalid(format!(
             "reference has {} pixels, the scene renders {}x{}",
@@ -176,7 +176,7 @@ pub fn run_ladder_with_film(
     };
     // SPPM's iterations depend on each other: each step is a render of its own, and its
     // time that render's (what a user asking for that many iterations gets).
-    let sppm = matches!(scene.integrator, crate::integrator::Integrator::Sppm(_));
+    let sppm = matches!(job.integrator, crate::integrator::Integrator::Sppm(_));
     for &requested in steps {
         let (spp, settings) = if sppm {
             film = Film::new(scene.width, scene.height, scene.filter);
@@ -218,7 +218,7 @@ pub fn run_ladder_with_film(
             };
             (spp, settings)
         };
-        let part = render(scene, &settings, &|_, _| {})?;
+        let part = render(scene, &job.integrator, &settings, &|_, _| {})?;
         film.add(&part.film);
         stats.paths += part.stats.paths;
         stats.path += part.stats.path;

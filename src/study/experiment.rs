@@ -9,6 +9,7 @@
 
 use crate::error::{Error, Result};
 use crate::io::exr::RgbImage;
+use crate::render::Job;
 use crate::render::RenderStats;
 use crate::sampler::SamplerKind;
 use crate::scene::description::{IntegratorDesc, SceneDescription};
@@ -311,10 +312,10 @@ pub fn efficiency(seconds: f64, mse: f64) -> f64 {
     1.0 / (seconds * mse)
 }
 
-/// Renders the ladder `steps` of `scene` with `seed` against `reference` (same resolution).
+/// Renders the ladder `steps` of `job` with `seed` against `reference` (same resolution).
 /// With `max_seconds`, the ladder stops after the first step whose time reaches it.
 pub fn run_one(
-    scene: &Scene,
+    job: &Job,
     steps: &[u32],
     seed: u64,
     threads: Option<usize>,
@@ -322,6 +323,7 @@ pub fn run_one(
     max_seconds: Option<f64>,
     on_step: &mut dyn FnMut(&StepRecord),
 ) -> Result<Run> {
+    let scene = &job.scene;
     let r = &reference.image;
     if (scene.width, scene.height) != (r.width, r.height) {
         return Err(Error::Invalid(format!(
@@ -333,7 +335,7 @@ pub fn run_one(
     let pixels = (scene.width * scene.height) as f64;
     let mut records = Vec::with_capacity(steps.len());
     let ladder = run_ladder_with_film(
-        scene,
+        job,
         steps,
         seed,
         threads,

@@ -19,8 +19,7 @@
 
 use crate::error::Error;
 use crate::io::exr;
-use crate::render::{render, RenderSettings};
-use crate::scene::Scene;
+use crate::render::{render, Job, RenderSettings};
 use crate::study::stats::{normal_two_sided_p, sidak};
 use std::path::{Path, PathBuf};
 use std::time::Instant;
@@ -191,7 +190,8 @@ fn try_run(scene: &SuiteScene, threads: Option<usize>) -> Result<Judgement, Erro
         ("spp".to_string(), spp.to_string()),
         ("integrator".to_string(), scene.integrator.clone()),
     ];
-    let loaded = Scene::load(&scene.path, &defines)?;
+    let job = Job::load(&scene.path, &defines)?;
+    let loaded = &job.scene;
     if loaded.width != reference.width || loaded.height != reference.height {
         return Err(Error::Invalid(format!(
             "{}: the scene renders {}x{}, its reference is {}x{}",
@@ -200,7 +200,8 @@ fn try_run(scene: &SuiteScene, threads: Option<usize>) -> Result<Judgement, Erro
     }
     let start = Instant::now();
     let out = render(
-        &loaded,
+        loaded,
+        &job.integrator,
         &RenderSettings {
             spp,
             first_sample: 0,

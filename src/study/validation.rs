@@ -19,6 +19,7 @@
 use crate::error::{Error, Result};
 use crate::film::Filter;
 use crate::io::exr::{self, RgbImage};
+use crate::render::Job;
 use crate::sampler::{Sampler, SamplerKind};
 use crate::scene::Scene;
 use crate::study::convergence::{
@@ -235,12 +236,13 @@ impl ValidationScene {
             .join(" ")
     }
 
-    pub fn load_scene(&self, root: &Path) -> Result<Scene> {
-        let mut scene = Scene::load(&root.join(&self.file), &self.defines_vec())?;
+    /// The scene and its integrator (the list's, if it names one).
+    pub fn load_job(&self, root: &Path) -> Result<Job> {
+        let mut desc = Scene::load_description(&root.join(&self.file), &self.defines_vec())?;
         if let Some(kind) = &self.integrator {
-            scene.use_integrator(kind)?;
+            desc.use_integrator(kind)?;
         }
-        Ok(scene)
+        Job::build(&desc)
     }
 
     /// Reads the reference and checks that it is the one the list asks for.
@@ -488,20 +490,21 @@ impl StudyResult {
 
 /// Runs the ladder `steps` on `scene` and the three checks against `reference`.
 pub fn study(
-    scene: &Scene,
+    job: &Job,
     reference: &Reference,
     steps: &[u32],
     seed: u64,
     threads: Option<usize>,
     on_step: &mut dyn FnMut(&LadderStep),
 ) -> Result<StudyResult> {
+    let scene = &job.scene;
     if (scene.width, scene.height) != (reference.image.width, reference.image.height) {
         return Err(Error::Invalid(format!(
             "scene renders {}x{}, the reference is {}x{}",
             scene.width, scene.height, reference.image.width, reference.image.height
         )));
     }
-    let ladder = run_ladder(scene, steps, seed, threads, &reference.image.rgb, on_step)?;
+    let ladder = run_ladder(job, steps, seed, threads, &reference.image.rgb, on_step)?;
     // the last step's own count (a sampler may have rounded it)
     let spp = ladder.steps.last().map_or(1, |st| st.spp) as f64;
     let (rgb, var) = (ladder.film.image(), ladder.film.sample_variance());
@@ -545,13 +548,13 @@ pub fn validate_scene(
     on_step: &mut dyn FnMut(&LadderStep),
 ) -> Result<SceneResult> {
     let t = Instant::now();
-    let mut scene = entry.load_scene(root)?;
+    let mut job = entry.load_job(root)?;
     if let Some(kind) = sampler {
-        scene.sampler = Sampler::new(kind, scene.sample_count).0;
+        job.scene.sampler = Sampler::new(kind, job.scene.sample_count).0;
     }
     let load_seconds = t.elapsed().as_secs_f64();
     let reference = entry.load_reference(root)?;
-    let study = study(&scene, &reference, steps, seed, threads, on_step)?;
+    let study = study(&job, &reference, steps, seed, threads, on_step)?;
     Ok(SceneResult {
         scene: entry.clone(),
         reference,

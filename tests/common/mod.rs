@@ -1,29 +1,39 @@
 //! Helpers shared by the scene-level tests.
 #![allow(dead_code)]
 
-use penumbra::render::{render, RenderOutput, RenderSettings};
-use penumbra::scene::Scene;
+use penumbra::render::{Job, RenderOutput, RenderSettings};
 use std::path::{Path, PathBuf};
 
 pub fn repo_path(rel: &str) -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR")).join(rel)
 }
 
-pub fn scene_from_str(xml: &str) -> Scene {
-    Scene::from_xml_str(xml, &repo_path("tests/inline.xml"), &[]).expect("scene builds")
+pub fn scene_from_str(xml: &str) -> Job {
+    Job::from_xml_str(xml, &repo_path("tests/inline.xml"), &[]).expect("scene builds")
 }
 
-pub fn load(rel: &str, defines: &[(&str, &str)]) -> Scene {
+/// The scene at `rel` rendered with integrator `kind` instead of its own (`--integrator`).
+pub fn load_with_integrator(rel: &str, defines: &[(&str, &str)], kind: &str) -> Job {
     let defines: Vec<(String, String)> = defines
         .iter()
         .map(|(k, v)| (k.to_string(), v.to_string()))
         .collect();
-    Scene::load(&repo_path(rel), &defines).expect("scene loads")
+    let mut desc =
+        penumbra::scene::Scene::load_description(&repo_path(rel), &defines).expect("scene loads");
+    desc.use_integrator(kind).expect("integrator switches");
+    Job::build(&desc).expect("scene builds")
 }
 
-pub fn render_scene(scene: &Scene, spp: u32, seed: u64, threads: Option<usize>) -> RenderOutput {
-    render(
-        scene,
+pub fn load(rel: &str, defines: &[(&str, &str)]) -> Job {
+    let defines: Vec<(String, String)> = defines
+        .iter()
+        .map(|(k, v)| (k.to_string(), v.to_string()))
+        .collect();
+    Job::load(&repo_path(rel), &defines).expect("scene loads")
+}
+
+pub fn render_scene(job: &Job, spp: u32, seed: u64, threads: Option<usize>) -> RenderOutput {
+    job.render(
         &RenderSettings {
             spp,
             seed,
@@ -62,7 +72,7 @@ pub fn bsdf_from_xml(bsdf: &str) -> penumbra::material::ShadingBsdf {
                     <integer name="height" value="4"/><rfilter type="box"/></film></sensor>
             <shape type="rectangle">{bsdf}</shape></scene>"#
     );
-    let scene = scene_from_str(&xml);
+    let scene = scene_from_str(&xml).scene;
     let ctx = penumbra::material::ShadingContext {
         tex: penumbra::texture::TextureContext::at_uv(glam::Vec2::splat(0.5)),
         frame: penumbra::geometry::Frame::from_normal(glam::Vec3::Z),
@@ -87,8 +97,8 @@ pub struct HitChecks {
 /// shading tangent (1e-4) and points within each other's error bounds. Returns the number of
 /// hits; `what` names the case in messages.
 pub fn compare_instanced_hits(
-    direct: &Scene,
-    instanced: &Scene,
+    direct: &penumbra::scene::Scene,
+    instanced: &penumbra::scene::Scene,
     rays: impl IntoIterator<Item = penumbra::geometry::Ray>,
     checks: &HitChecks,
     what: &str,

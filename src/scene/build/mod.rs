@@ -23,10 +23,6 @@ use crate::emitter::{
 };
 use crate::error::{Error, Result};
 use crate::film::Filter;
-use crate::integrator::{
-    DirectIntegrator, Integrator, ParticleTracer, PathIntegrator, Sppm, VolPathIntegrator,
-    VolPathMisIntegrator,
-};
 use crate::medium::{Heterogeneous, Homogeneous, Medium, MediumKind};
 use crate::phase::{HenyeyGreenstein, PhaseFunction};
 use crate::sampler::Sampler;
@@ -36,147 +32,6 @@ use crate::texture::bitmap::Wrap;
 use crate::volume::{constant::ConstVolume, GridVolume, Volume};
 use glam::{DMat3, DMat4, DVec3, Vec2, Vec3};
 use rayon::prelude::*;
-
-/// The integrator of `d`; `world_origin` is the camera's world position (the scene is built
-/// around the camera).
-fn build_integrator(
-    d: &IntegratorDesc,
-    camera: &Camera,
-    has_media: bool,
-    pixels: usize,
-    world_origin: Vec3,
-) -> Result<Integrator> {
-    let depth = |d: i64| {
-        if d < 0 {
-            u32::MAX
-        } else {
-            d.min(u32::MAX as i64) as u32
-        }
-    };
-    Ok(match d.clone() {
-        IntegratorDesc::VolPath {
-            mis,
-            max_depth,
-            rr_depth,
-            hide_emitters,
-            use_spectral_mis,
-        } => {
-            let max_depth = depth(max_depth);
-            let rr_depth = rr_depth.clamp(1, u32::MAX as i64) as u32;
-            if mis {
-                Integrator::VolPathMis(VolPathMisIntegrator {
-                    max_depth,
-                    rr_depth,
-                    hide_emitters,
-                    spectral_mis: use_spectral_mis,
-                })
-            } else {
-                Integrator::VolPath(VolPathIntegrator {
-                    max_depth,
-                    rr_depth,
-                    hide_emitters,
-                })
-            }
-        }
-        IntegratorDesc::Path {
-            max_depth,
-            rr_depth,
-            hide_emitters,
-        } => Integrator::Path(PathIntegrator {
-            max_depth: if max_depth < 0 {
-                u32::MAX
-            } else {
-                max_depth.min(u32::MAX as i64) as u32
-            },
-            rr_depth: rr_depth.clamp(1, u32::MAX as i64) as u32,
-            hide_emitters,
-        }),
-        IntegratorDesc::Aov { aovs, nested } => {
-            use crate::integrator::aov::{AovIntegrator, AovKind};
-            let aovs = aovs
-                .iter()
-                .map(|(name, kind)| {
-                    AovKind::from_name(kind)
-                        .map(|k| (name.clone(), k))
-                        .ok_or_else(|| Error::Invalid(format!("unknown AOV type '{kind}'")))
-                })
-                .collect::<Result<Vec<_>>>()?;
-            let nested = nested
-                .iter()
-                .map(|(name, n)| {
-                    Ok((
-                        name.clone(),
-                        build_integrator(n, camera, has_media, pixels, world_origin)?,
-                    ))
-                })
-                .collect::<Result<Vec<_>>>()?;
-            Integrator::Aov(AovIntegrator {
-                aovs,
-                nested,
-                world_origin,
-                group: 0,
-            })
-        }
-        IntegratorDesc::Whitted {
-            max_depth,
-            emitter_samples,
-            hide_emitters,
-            shadows,
-        } => Integrator::Whitted(crate::integrator::WhittedIntegrator {
-            max_depth,
-            emitter_samples,
-            hide_emitters,
-            shadows,
-        }),
-        // The top-level radiosity integrator is made in `build`, once the scene exists.
-        IntegratorDesc::Radiosity(_) => {
-            return Err(Error::Invalid(
-                "radiosity cannot be nested in an aov integrator".into(),
-            ))
-        }
-        IntegratorDesc::Direct {
-            emitter_samples,
-            bsdf_samples,
-            hide_emitters,
-        } => Integrator::Direct(DirectIntegrator::new(
-            emitter_samples,
-            bsdf_samples,
-            hide_emitters,
-        )),
-        IntegratorDesc::Sppm {
-            max_depth,
-            photon_count,
-            initial_radius,
-            alpha,
-        } => {
-            crate::integrator::ptracer::check_scene("sppm", false, camera, has_media)?;
-            Integrator::Sppm(Sppm {
-                max_depth: depth(max_depth),
-                photon_count: if photon_count == 0 {
-                    pixels as u64
-                } else {
-                    photon_count
-                },
-                initial_radius: initial_radius as f32,
-                alpha: alpha as f32,
-            })
-        }
-        IntegratorDesc::ParticleTracer {
-            max_depth,
-            rr_depth,
-            hide_emitters,
-            samples_per_pass,
-        } => {
-            crate::integrator::ptracer::check_scene("ptracer", true, camera, has_media)?;
-            Integrator::ParticleTracer(ParticleTracer {
-                max_depth: depth(max_depth),
-                rr_depth: rr_depth.clamp(1, u32::MAX as i64) as u32,
-                hide_emitters,
-                samples_per_pass: (samples_per_pass > 0).then_some(samples_per_pass),
-            })
-        }
-    })
-}
 
 /// Builds the scene in camera-relative coordinates: every transform is composed in f64 with
 /// a translation that puts the camera at the origin before anything is rounded to f32. A scene
@@ -355,12 +210,6 @@ pub fn build(desc: &SceneDescription) -> Result<Scene> {
         .iter()
         .map(|m| medium(m, shift).map_err(|e| Error::within(&m.location, e)))
         .collect::<Result<Vec<_>>>()?;
-    let world_origin = s.to_world.transform_point3(DVec3::ZERO).as_vec3();
-    let integrator = match &desc.integrator {
-        // Replaced below: radiosity divides the built scene into patches.
-        IntegratorDesc::Radiosity(_) => Integrator::Direct(DirectIntegrator::new(1, 1, false)),
-        d => build_integrator(d, &camera, !media.is_empty(), width * height, world_origin)?,
-    };
     let (sampler, rounded) = Sampler::new(s.sampler.kind, s.sampler.sample_count);
     warnings.extend(rounded);
     let shadow_passthrough = !media.is_empty()
@@ -397,7 +246,7 @@ pub fn build(desc: &SceneDescription) -> Result<Scene> {
         sample_count: sampler.sample_count,
         sampler,
         seed: s.sampler.seed,
-        integrator,
+        world_origin: s.to_world.transform_point3(DVec3::ZERO).as_vec3(),
         warnings,
         environment,
         bounding_sphere,
@@ -415,11 +264,6 @@ pub fn build(desc: &SceneDescription) -> Result<Scene> {
             IntegratorDesc::ParticleTracer { .. } => {}
             _ => scene.sample_border = scene.filter.border(),
         }
-    }
-    if let IntegratorDesc::Radiosity(params) = &desc.integrator {
-        scene.integrator = Integrator::Radiosity(
-            crate::integrator::radiosity::RadiosityIntegrator::new(&scene, params.clone())?,
-        );
     }
     Ok(scene)
 }

@@ -44,10 +44,9 @@ pub enum IntegratorDesc {
         bsdf_samples: u32,
         hide_emitters: bool,
     },
-    /// Mitsuba's `aov`: `aovs` as (name, type) pairs (types: depth, position, geo_normal,
-    /// sh_normal, uv, albedo) and nested integrators by name.
+    /// Mitsuba's `aov`: `aovs` as (name, type) pairs and nested integrators by name.
     Aov {
-        aovs: Vec<(String, String)>,
+        aovs: Vec<(String, AovKind)>,
         nested: Vec<(String, IntegratorDesc)>,
     },
     /// penumbra's `whitted`: recursive ray tracing, direct light from every emitter
@@ -61,7 +60,176 @@ pub enum IntegratorDesc {
     },
     /// penumbra's `radiosity`: diffuse patches, Monte Carlo form factors, progressive
     /// refinement.
-    Radiosity(crate::integrator::radiosity::RadiosityParams),
+    Radiosity(RadiosityParams),
+}
+
+/// The largest `max_depth` of `whitted` (every glass interface doubles its rays).
+pub const WHITTED_MAX_DEPTH: u32 = 20;
+
+/// SPPM's default radius reduction α (Hachisuka and Jensen 2009's 2/3).
+pub const SPPM_ALPHA: f64 = 2.0 / 3.0;
+
+/// The AOV types penumbra supports (Mitsuba's names).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum AovKind {
+    Depth,
+    Position,
+    GeoNormal,
+    ShNormal,
+    Uv,
+    Albedo,
+}
+
+impl AovKind {
+    pub fn from_name(name: &str) -> Option<AovKind> {
+        Some(match name {
+            "depth" => AovKind::Depth,
+            "position" => AovKind::Position,
+            "geo_normal" => AovKind::GeoNormal,
+            "sh_normal" => AovKind::ShNormal,
+            "uv" => AovKind::Uv,
+            "albedo" => AovKind::Albedo,
+            _ => return None,
+        })
+    }
+
+    /// The channel suffixes Mitsuba writes for this type.
+    pub fn channels(self) -> &'static [&'static str] {
+        match self {
+            AovKind::Depth => &["T"],
+            AovKind::Position | AovKind::GeoNormal | AovKind::ShNormal => &["X", "Y", "Z"],
+            AovKind::Uv => &["U", "V"],
+            AovKind::Albedo => &["R", "G", "B"],
+        }
+    }
+}
+
+/// How the image is made from the patch solution.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Shading {
+    /// Each patch's radiance B/π, constant over the patch.
+    Flat,
+    /// A final gather: exact emission and direct light at the pixel, indirect light from
+    /// the patches one cosine-distributed ray away.
+    Gather,
+}
+
+impl Shading {
+    pub fn from_name(name: &str) -> Option<Self> {
+        match name {
+            "flat" => Some(Shading::Flat),
+            "gather" => Some(Shading::Gather),
+            _ => None,
+        }
+    }
+}
+
+/// The radiosity integrator's XML parameters.
+#[derive(Clone, Debug, PartialEq)]
+pub struct RadiosityParams {
+    /// Target number of patches over all surfaces (used when `patch_size` is 0).
+    pub patch_count: u32,
+    /// Target patch edge length in scene units (0: use `patch_count`).
+    pub patch_size: f32,
+    /// Form-factor rays from each patch side.
+    pub rays_per_patch: u32,
+    /// Shooting stops when the unshot power is below this share of the emitted power.
+    pub residual: f32,
+    pub shading: Shading,
+}
+
+impl Default for RadiosityParams {
+    fn default() -> Self {
+        RadiosityParams {
+            patch_count: 1024,
+            patch_size: 0.0,
+            rays_per_patch: 1024,
+            residual: 1e-4,
+            shading: Shading::Gather,
+        }
+    }
+}
+
+impl IntegratorDesc {
+    /// This integrator replaced by `kind` with its defaults, taking this one's `max_depth`,
+    /// `rr_depth` and `hide_emitters` where it has them: `path`, `ptracer` (light tracing),
+    /// `sppm` (one photon per pixel per iteration, automatic radius, α = 2/3), `whitted`
+    /// (one sample per area light) or `radiosity` (1024 patches, 1024 rays each, final
+    /// gather). For rendering a scene written for the path tracer with a light-path
+    /// integrator (the validation study's light-tracing entries, `penumbra render
+    /// --integrator`).
+    pub fn switched_to(&self, kind: &str) -> Result<IntegratorDesc> {
+        // (max_depth, rr_depth, hide_emitters); −1: unbounded.
+        let (max_depth, rr_depth, hide_emitters) =
+            match *self {
+                IntegratorDesc::Path {
+                    max_depth,
+                    rr_depth,
+                    hide_emitters,
+                }
+                | IntegratorDesc::VolPath {
+                    max_depth,
+                    rr_depth,
+                    hide_emitters,
+                    ..
+                }
+                | IntegratorDesc::ParticleTracer {
+                    max_depth,
+                    rr_depth,
+                    hide_emitters,
+                    ..
+                } => (max_depth, rr_depth, hide_emitters),
+                IntegratorDesc::Sppm { max_depth, .. } => (max_depth, 5, false),
+                IntegratorDesc::Direct { hide_emitters, .. } => (2, 5, hide_emitters),
+                IntegratorDesc::Whitted {
+                    max_depth,
+                    hide_emitters,
+                    ..
+                } => (max_depth as i64, 5, hide_emitters),
+                IntegratorDesc::Radiosity(_) => (8, 5, false),
+                IntegratorDesc::Aov { .. } => return Err(Error::Invalid(
+                    "an aov scene cannot switch integrator (name one inside the aov integrator)"
+                        .into(),
+                )),
+            };
+        Ok(match kind {
+            "path" => IntegratorDesc::Path {
+                max_depth,
+                rr_depth,
+                hide_emitters,
+            },
+            "ptracer" => IntegratorDesc::ParticleTracer {
+                max_depth,
+                rr_depth,
+                hide_emitters,
+                samples_per_pass: 0,
+            },
+            "sppm" => IntegratorDesc::Sppm {
+                max_depth,
+                photon_count: 0,
+                initial_radius: 0.0,
+                alpha: SPPM_ALPHA,
+            },
+            "whitted" => {
+                if !(1..=WHITTED_MAX_DEPTH as i64).contains(&max_depth) {
+                    return Err(Error::Invalid(format!(
+                        "whitted needs a max_depth in [1, {WHITTED_MAX_DEPTH}]; the scene's integrator has {}",
+                        if max_depth < 0 { "-1 (unbounded)".to_string() } else { max_depth.to_string() }
+                    )));
+                }
+                IntegratorDesc::Whitted {
+                    max_depth: max_depth as u32,
+                    emitter_samples: 1,
+                    hide_emitters,
+                    shadows: true,
+                }
+            }
+            "radiosity" => IntegratorDesc::Radiosity(RadiosityParams::default()),
+            _ => return Err(Error::Invalid(format!(
+                "unknown integrator '{kind}' (expected path, ptracer, sppm, whitted or radiosity)"
+            ))),
+        })
+    }
 }
 
 /// The rendering controls of Mitsuba's integrator base classes: `timeout` (seconds, −1:
@@ -136,13 +304,13 @@ fn aov_desc(o: &Object) -> Result<(IntegratorDesc, Option<f64>)> {
             .split_once(':')
             .filter(|(n, k)| !n.is_empty() && !k.is_empty())
             .ok_or_else(|| bad("expected name:type"))?;
-        if crate::integrator::aov::AovKind::from_name(kind).is_none() {
-            return Err(bad(
+        let kind = AovKind::from_name(kind).ok_or_else(|| {
+            bad(
                 "unsupported type (penumbra supports depth, position, geo_normal, sh_normal, \
                  uv and albedo)",
-            ));
-        }
-        aovs.push((name.to_string(), kind.to_string()));
+            )
+        })?;
+        aovs.push((name.to_string(), kind));
     }
     let mut nested = Vec::new();
     for Child { name, object: c } in &o.children {
@@ -287,7 +455,7 @@ pub(super) fn integrator_desc(o: &Object) -> Result<(IntegratorDesc, bool, Optio
             let max_depth = p.int("max_depth", -1)?;
             let photon_count = p.int("photon_count", 0)?;
             let initial_radius = p.float("initial_radius", 0.0)?;
-            let alpha = p.float("alpha", 2.0 / 3.0)?;
+            let alpha = p.float("alpha", SPPM_ALPHA)?;
             p.finish()?;
             let bad = |msg: String| Err(Error::scene(&o.location, msg));
             if max_depth < -1 {
@@ -361,7 +529,7 @@ pub(super) fn integrator_desc(o: &Object) -> Result<(IntegratorDesc, bool, Optio
             }
         }
         "whitted" => {
-            use crate::integrator::whitted::MAX_DEPTH;
+            const MAX_DEPTH: u32 = WHITTED_MAX_DEPTH;
             let max_depth = p.int("max_depth", 6)?;
             let emitter_samples = p.int("emitter_samples", 1)?;
             let hide_emitters = p.boolean("hide_emitters", false)?;
@@ -394,7 +562,6 @@ pub(super) fn integrator_desc(o: &Object) -> Result<(IntegratorDesc, bool, Optio
             }
         }
         "radiosity" => {
-            use crate::integrator::radiosity::{RadiosityParams, Shading};
             let d = RadiosityParams::default();
             let patch_count = p.int("patch_count", d.patch_count as i64)?;
             let patch_size = p.float("patch_size", 0.0)?;

@@ -65,6 +65,14 @@ pub struct SceneDescription {
 }
 
 impl SceneDescription {
+    /// Renders with `kind` instead of the file's integrator, which lends it its depths
+    /// ([`IntegratorDesc::switched_to`]; the CLI's `--integrator`).
+    pub fn use_integrator(&mut self, kind: &str) -> Result<()> {
+        self.integrator = self.integrator.switched_to(kind)?;
+        self.integrator_missing = false;
+        Ok(())
+    }
+
     /// Renders the file's sensor number `index` (from 0, in document order) instead of the
     /// first (the CLI's `--sensor N`).
     pub fn select_sensor(&mut self, index: usize) -> Result<()> {
@@ -124,7 +132,7 @@ impl SceneDescription {
 }
 
 /// The warning of a scene without an `<integrator>` (rendered with `path`), until another
-/// integrator is chosen ([`crate::scene::Scene::use_integrator`]).
+/// integrator is chosen ([`SceneDescription::use_integrator`]).
 pub const NO_INTEGRATOR_WARNING: &str =
     "the scene has no <integrator>: rendering with path (max_depth -1, rr_depth 5); Mitsuba's mi.render needs one passed in";
 
