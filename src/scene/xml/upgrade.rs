@@ -16,7 +16,8 @@
 //!
 //! Ids, tags (`<lookAt>` stays unknown) and `<default>` names are left alone.
 
-use super::{Body, Entry, Property, Value};
+use super::objects::{Body, Entry};
+use super::{Property, Value};
 use crate::error::{Error, Location, Result};
 use glam::{DMat4, DVec3};
 
