@@ -225,9 +225,11 @@ impl IntegratorDesc {
                 }
             }
             "radiosity" => IntegratorDesc::Radiosity(RadiosityParams::default()),
-            _ => return Err(Error::Invalid(format!(
+            _ => {
+                return Err(Error::Invalid(format!(
                 "unknown integrator '{kind}' (expected path, ptracer, sppm, whitted or radiosity)"
-            ))),
+            )))
+            }
         })
     }
 }
