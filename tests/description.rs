@@ -2275,12 +2275,11 @@ fn phong_reads_its_parameters_and_refuses_energy_gain() {
     use penumbra::scene::description::BsdfDesc;
     let d = desc_body(r#"<shape type="sphere"><bsdf type="phong"/></shape>"#);
     match &d.shapes[0].bsdf {
-        BsdfDesc::Phong {
-            exponent,
-            diffuse_reflectance,
-            specular_reflectance,
-        } => {
-            assert_eq!(*exponent, 30.0);
+        BsdfDesc::Table { plugin, params } if *plugin == "phong" => {
+            let [exponent, diffuse_reflectance, specular_reflectance] = params.as_slice() else {
+                panic!("phong has three parameters, got {params:?}");
+            };
+            assert_eq!(exponent.constant_scalar(), Some(30.0));
             assert_eq!(diffuse_reflectance.constant_rgb(), Some(DVec3::splat(0.5)));
             assert_eq!(specular_reflectance.constant_rgb(), Some(DVec3::splat(0.2)));
         }
@@ -2294,6 +2293,14 @@ fn phong_reads_its_parameters_and_refuses_energy_gain() {
         r#"<shape type="sphere"><bsdf type="phong"><float name="exponent" value="-1"/></bsdf></shape>"#,
     );
     assert!(e.contains("exponent"), "{e}");
+    // The range of phong's table: the message names the parameter, the range and the value.
+    let e = error_body(
+        r#"<shape type="sphere"><bsdf type="phong"><float name="exponent" value="2e5"/></bsdf></shape>"#,
+    );
+    assert!(
+        e.contains("the exponent of <bsdf type=\"phong\"> must be in [0, 100000], got 200000"),
+        "{e}"
+    );
 }
 
 /// Parameters of Mitsuba's that only some values make meaningful: roughplastic's

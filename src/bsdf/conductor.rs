@@ -42,3 +42,27 @@ impl Conductor {
         })
     }
 }
+
+impl super::BsdfModel for Conductor {
+    const NAME: &'static str = "conductor";
+
+    #[inline]
+    fn eval(&self, wi: Vec3, wo: Vec3) -> Spectrum {
+        Conductor::eval(self, wi, wo)
+    }
+
+    #[inline]
+    fn pdf(&self, wi: Vec3, wo: Vec3) -> f32 {
+        Conductor::pdf(self, wi, wo)
+    }
+
+    #[inline]
+    fn sample(&self, wi: Vec3, _u1: f32, u2: Vec2) -> Option<BsdfSample> {
+        Conductor::sample(self, wi, u2)
+    }
+
+    #[inline]
+    fn has_smooth_lobe(&self, _wi: Vec3) -> bool {
+        false
+    }
+}

@@ -12,7 +12,7 @@
 use super::fresnel::{fresnel_dielectric, refract, DielectricFresnel};
 use super::{BsdfSample, Spectrum};
 use arrayvec::ArrayVec;
-use glam::Vec3;
+use glam::{Vec2, Vec3};
 
 #[derive(Clone, Debug)]
 pub struct Dielectric {
@@ -81,6 +81,34 @@ impl Dielectric {
             delta: true,
             null: false,
         }
+    }
+}
+
+impl super::BsdfModel for Dielectric {
+    const NAME: &'static str = "dielectric";
+
+    #[inline]
+    fn eval(&self, wi: Vec3, wo: Vec3) -> Spectrum {
+        Dielectric::eval(self, wi, wo)
+    }
+
+    #[inline]
+    fn pdf(&self, wi: Vec3, wo: Vec3) -> f32 {
+        Dielectric::pdf(self, wi, wo)
+    }
+
+    #[inline]
+    fn sample(&self, wi: Vec3, u1: f32, _u2: Vec2) -> Option<BsdfSample> {
+        Dielectric::sample(self, wi, u1)
+    }
+
+    #[inline]
+    fn has_smooth_lobe(&self, _wi: Vec3) -> bool {
+        false
+    }
+
+    fn is_transmissive(&self) -> bool {
+        true
     }
 }
 

@@ -43,3 +43,27 @@ impl Diffuse {
         })
     }
 }
+
+impl super::BsdfModel for Diffuse {
+    const NAME: &'static str = "diffuse";
+
+    #[inline]
+    fn eval(&self, wi: Vec3, wo: Vec3) -> Spectrum {
+        Diffuse::eval(self, wi, wo)
+    }
+
+    #[inline]
+    fn pdf(&self, wi: Vec3, wo: Vec3) -> f32 {
+        Diffuse::pdf(self, wi, wo)
+    }
+
+    #[inline]
+    fn sample(&self, wi: Vec3, _u1: f32, u2: Vec2) -> Option<BsdfSample> {
+        Diffuse::sample(self, wi, u2)
+    }
+
+    #[inline]
+    fn has_smooth_lobe(&self, _wi: Vec3) -> bool {
+        true
+    }
+}

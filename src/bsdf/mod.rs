@@ -10,6 +10,7 @@ pub mod fresnel;
 pub mod microfacet;
 pub mod phong;
 pub mod plastic;
+pub mod plugin;
 pub mod presets;
 pub mod principled;
 pub mod principledthin;
@@ -24,6 +25,7 @@ pub use diffuse::Diffuse;
 pub use microfacet::{Microfacet, MicrofacetType};
 pub use phong::Phong;
 pub use plastic::Plastic;
+pub use plugin::{table_plugin, BsdfModel, ParamKind, ParamSpec, PluginInfo, TablePlugin};
 pub use principled::{Principled, PrincipledParams};
 pub use principledthin::{PrincipledThin, PrincipledThinParams};
 pub use roughconductor::RoughConductor;
@@ -77,22 +79,113 @@ impl BsdfSample {
     }
 }
 
-/// Variants are stored inline, the largest (roughplastic with its 64-entry albedo table)
-/// included: a BSDF is copied into the shading point's tree, which must not allocate.
-#[allow(clippy::large_enum_variant)]
-#[derive(Clone, Debug)]
-pub enum Bsdf {
-    Diffuse(Diffuse),
-    Conductor(Conductor),
-    RoughConductor(RoughConductor),
-    Dielectric(Dielectric),
-    ThinDielectric(ThinDielectric),
-    RoughDielectric(RoughDielectric),
-    Plastic(Plastic),
-    RoughPlastic(RoughPlastic),
-    Principled(Principled),
-    PrincipledThin(PrincipledThin),
-    Phong(Phong),
+/// Declares the leaf BSDFs: the [`Bsdf`] enum, its dispatch to each model's [`BsdfModel`]
+/// methods, and [`TABLE_PLUGINS`], the plugins the scene reads through their parameter table.
+macro_rules! bsdfs {
+    (
+        plain: [$($p:ident($pt:ty)),* $(,)?],
+        table: [$($t:ident($tt:ty)),* $(,)?] $(,)?
+    ) => {
+        /// Variants are stored inline, the largest (roughplastic with its 64-entry albedo
+        /// table) included: a BSDF is copied into the shading point's tree, which must not
+        /// allocate.
+        #[allow(clippy::large_enum_variant)]
+        #[derive(Clone, Debug)]
+        pub enum Bsdf {
+            $($p($pt),)*
+            $($t($tt),)*
+        }
+
+        /// The leaf BSDF plugins described by their parameter table.
+        pub static TABLE_PLUGINS: &[PluginInfo] = &[$(PluginInfo {
+            name: <$tt as BsdfModel>::NAME,
+            params: <$tt as TablePlugin>::PARAMS,
+            check: <$tt as TablePlugin>::check,
+            build: |v| Bsdf::$t(<$tt as TablePlugin>::from_params(v)),
+        }),*];
+
+        impl Bsdf {
+            /// f(wi, wo) |cos θo|.
+            pub fn eval(&self, wi: Vec3, wo: Vec3) -> Spectrum {
+                match self {
+                    $(Bsdf::$p(b) => BsdfModel::eval(b, wi, wo),)*
+                    $(Bsdf::$t(b) => BsdfModel::eval(b, wi, wo),)*
+                }
+            }
+
+            /// Solid-angle density with which `sample` produces `wo`.
+            pub fn pdf(&self, wi: Vec3, wo: Vec3) -> f32 {
+                match self {
+                    $(Bsdf::$p(b) => BsdfModel::pdf(b, wi, wo),)*
+                    $(Bsdf::$t(b) => BsdfModel::pdf(b, wi, wo),)*
+                }
+            }
+
+            /// Samples an outgoing direction; `u1` picks a lobe, `u2` the direction.
+            pub fn sample(&self, wi: Vec3, u1: f32, u2: Vec2) -> Option<BsdfSample> {
+                match self {
+                    $(Bsdf::$p(b) => BsdfModel::sample(b, wi, u1, u2),)*
+                    $(Bsdf::$t(b) => BsdfModel::sample(b, wi, u1, u2),)*
+                }
+            }
+
+            /// Whether the BSDF has a non-delta lobe on the side `wi` lies on: only then does
+            /// emitter sampling (NEE) make sense. (A one-sided BSDF seen from behind has
+            /// nothing.)
+            pub fn has_smooth_lobe(&self, wi: Vec3) -> bool {
+                match self {
+                    $(Bsdf::$p(b) => BsdfModel::has_smooth_lobe(b, wi),)*
+                    $(Bsdf::$t(b) => BsdfModel::has_smooth_lobe(b, wi),)*
+                }
+            }
+
+            /// Whether the BSDF can transmit light to the other side (then reciprocity of
+            /// `eval` does not hold in radiance mode, and albedos count transmission too).
+            pub fn is_transmissive(&self) -> bool {
+                match self {
+                    $(Bsdf::$p(b) => BsdfModel::is_transmissive(b),)*
+                    $(Bsdf::$t(b) => BsdfModel::is_transmissive(b),)*
+                }
+            }
+
+            /// The plugin's name in scene files.
+            pub fn plugin_name(&self) -> &'static str {
+                match self {
+                    $(Bsdf::$p(_) => <$pt as BsdfModel>::NAME,)*
+                    $(Bsdf::$t(_) => <$tt as BsdfModel>::NAME,)*
+                }
+            }
+
+            /// Sets parameter `index` of a table plugin's table.
+            #[inline]
+            fn set_table_param(&mut self, index: usize, v: Spectrum) {
+                match self {
+                    $(Bsdf::$p(b) => BsdfModel::set_param(b, index, v),)*
+                    $(Bsdf::$t(b) => BsdfModel::set_param(b, index, v),)*
+                }
+            }
+        }
+    };
+}
+
+// The leaf BSDFs. A new one with a parameter table is its file (a `TablePlugin`) and one line
+// under `table`.
+bsdfs! {
+    plain: [
+        Diffuse(Diffuse),
+        Conductor(Conductor),
+        RoughConductor(RoughConductor),
+        Dielectric(Dielectric),
+        ThinDielectric(ThinDielectric),
+        RoughDielectric(RoughDielectric),
+        Plastic(Plastic),
+        RoughPlastic(RoughPlastic),
+        Principled(Principled),
+        PrincipledThin(PrincipledThin),
+    ],
+    table: [
+        Phong(Phong),
+    ],
 }
 
 impl Bsdf {
@@ -119,72 +212,6 @@ impl Bsdf {
         }
     }
 
-    /// f(wi, wo) |cos θo|.
-    pub fn eval(&self, wi: Vec3, wo: Vec3) -> Spectrum {
-        match self {
-            Bsdf::Diffuse(b) => b.eval(wi, wo),
-            Bsdf::Conductor(b) => b.eval(wi, wo),
-            Bsdf::RoughConductor(b) => b.eval(wi, wo),
-            Bsdf::Dielectric(b) => b.eval(wi, wo),
-            Bsdf::ThinDielectric(b) => b.eval(wi, wo),
-            Bsdf::RoughDielectric(b) => b.eval(wi, wo),
-            Bsdf::Plastic(b) => b.eval(wi, wo),
-            Bsdf::RoughPlastic(b) => b.eval(wi, wo),
-            Bsdf::Principled(b) => b.eval(wi, wo),
-            Bsdf::PrincipledThin(b) => b.eval(wi, wo),
-            Bsdf::Phong(b) => b.eval(wi, wo),
-        }
-    }
-
-    /// Solid-angle density with which `sample` produces `wo`.
-    pub fn pdf(&self, wi: Vec3, wo: Vec3) -> f32 {
-        match self {
-            Bsdf::Diffuse(b) => b.pdf(wi, wo),
-            Bsdf::Conductor(b) => b.pdf(wi, wo),
-            Bsdf::RoughConductor(b) => b.pdf(wi, wo),
-            Bsdf::Dielectric(b) => b.pdf(wi, wo),
-            Bsdf::ThinDielectric(b) => b.pdf(wi, wo),
-            Bsdf::RoughDielectric(b) => b.pdf(wi, wo),
-            Bsdf::Plastic(b) => b.pdf(wi, wo),
-            Bsdf::RoughPlastic(b) => b.pdf(wi, wo),
-            Bsdf::Principled(b) => b.pdf(wi, wo),
-            Bsdf::PrincipledThin(b) => b.pdf(wi, wo),
-            Bsdf::Phong(b) => b.pdf(wi, wo),
-        }
-    }
-
-    /// Samples an outgoing direction; `u1` picks a lobe, `u2` the direction.
-    pub fn sample(&self, wi: Vec3, u1: f32, u2: Vec2) -> Option<BsdfSample> {
-        match self {
-            Bsdf::Diffuse(b) => b.sample(wi, u2),
-            Bsdf::Conductor(b) => b.sample(wi, u2),
-            Bsdf::RoughConductor(b) => b.sample(wi, u2),
-            Bsdf::Dielectric(b) => b.sample(wi, u1),
-            Bsdf::ThinDielectric(b) => b.sample(wi, u1),
-            Bsdf::RoughDielectric(b) => b.sample(wi, u1, u2),
-            Bsdf::Plastic(b) => b.sample(wi, u1, u2),
-            Bsdf::RoughPlastic(b) => b.sample(wi, u1, u2),
-            Bsdf::Principled(b) => b.sample(wi, u1, u2),
-            Bsdf::PrincipledThin(b) => b.sample(wi, u1, u2),
-            Bsdf::Phong(b) => b.sample(wi, u1, u2),
-        }
-    }
-
-    /// Whether the BSDF has a non-delta lobe on the side `wi` lies on: only then does
-    /// emitter sampling (NEE) make sense. (A one-sided BSDF seen from behind has nothing.)
-    pub fn has_smooth_lobe(&self, wi: Vec3) -> bool {
-        match self {
-            Bsdf::Diffuse(_) => true,
-            Bsdf::Conductor(_) | Bsdf::Dielectric(_) | Bsdf::ThinDielectric(_) => false,
-            Bsdf::RoughConductor(_) | Bsdf::Plastic(_) | Bsdf::RoughPlastic(_) | Bsdf::Phong(_) => {
-                wi.z > 0.0
-            }
-            Bsdf::RoughDielectric(_) => true,
-            Bsdf::Principled(b) => b.has_smooth_lobe(wi),
-            Bsdf::PrincipledThin(b) => b.has_smooth_lobe(wi),
-        }
-    }
-
     /// Every outcome of `sample` with its probability as `pdf`, for the BSDFs made of two
     /// Dirac-delta lobes picked at random (`dielectric`, `thindielectric`); `None` for the
     /// others. Radiance mode.
@@ -193,17 +220,6 @@ impl Bsdf {
             Bsdf::Dielectric(b) => Some(b.branches(wi)),
             Bsdf::ThinDielectric(b) => Some(b.branches(wi)),
             _ => None,
-        }
-    }
-
-    /// Whether the BSDF can transmit light to the other side (then reciprocity of `eval`
-    /// does not hold in radiance mode, and albedos count transmission too).
-    pub fn is_transmissive(&self) -> bool {
-        match self {
-            Bsdf::Dielectric(_) | Bsdf::ThinDielectric(_) | Bsdf::RoughDielectric(_) => true,
-            Bsdf::Principled(b) => b.is_transmissive(),
-            Bsdf::PrincipledThin(b) => b.is_transmissive(),
-            _ => false,
         }
     }
 
@@ -247,8 +263,7 @@ impl Bsdf {
             (Bsdf::Plastic(b), P::SpecularReflectance) => b.specular_reflectance = v,
             (Bsdf::RoughPlastic(b), P::DiffuseReflectance) => b.diffuse_reflectance = v,
             (Bsdf::RoughPlastic(b), P::SpecularReflectance) => b.specular_reflectance = v,
-            (Bsdf::Phong(b), P::DiffuseReflectance) => b.diffuse_reflectance = v,
-            (Bsdf::Phong(b), P::SpecularReflectance) => b.specular_reflectance = v,
+            (b, P::TableColor(i) | P::TableScalar(i)) => b.set_table_param(i as usize, v),
             _ => {}
         }
     }
@@ -283,6 +298,10 @@ pub enum BsdfParam {
     DiffTrans,
     /// `principledthin`'s `eta` (one value, unlike a conductor's `eta`).
     SheetEta,
+    /// Colour parameter `i` of a table plugin's table ([`TABLE_PLUGINS`]).
+    TableColor(u8),
+    /// One-value parameter `i` of a table plugin's table.
+    TableScalar(u8),
 }
 
 impl BsdfParam {
@@ -298,6 +317,7 @@ impl BsdfParam {
                 | P::Eta
                 | P::K
                 | P::BaseColor
+                | P::TableColor(_)
         )
     }
 }

@@ -15,16 +15,67 @@
 //! (n + 1) / (2π) cosⁿ α, a direction below the surface rejected; else cosine-weighted. The
 //! pdf is the mixture of both. One-sided, like Mitsuba's: black from below.
 
+use super::plugin::{BsdfModel, ParamKind, ParamSpec, TablePlugin};
 use super::{BsdfSample, Spectrum};
 use crate::sampling::{square_to_cosine_hemisphere, square_to_cosine_hemisphere_pdf};
-use glam::{Vec2, Vec3};
+use crate::spectrum::ColorRole;
+use glam::{DVec3, Vec2, Vec3};
 use std::f32::consts::{FRAC_1_PI, PI};
+
+/// `phong`'s parameters (Mitsuba 0.6's names and defaults).
+const PARAMS: &[ParamSpec] = &[
+    ParamSpec {
+        name: "exponent",
+        kind: ParamKind::Float,
+        default: 30.0,
+        min: 0.0,
+        max: 1e5,
+        doc: "n, the specular lobe's exponent",
+    },
+    ParamSpec {
+        name: "diffuse_reflectance",
+        kind: ParamKind::Color(ColorRole::Reflectance),
+        default: 0.5,
+        min: 0.0,
+        max: 1.0,
+        doc: "kd, the diffuse albedo",
+    },
+    ParamSpec {
+        name: "specular_reflectance",
+        kind: ParamKind::Color(ColorRole::Reflectance),
+        default: 0.2,
+        min: 0.0,
+        max: 1.0,
+        doc: "ks, the specular lobe's albedo at normal incidence",
+    },
+];
 
 #[derive(Clone, Debug)]
 pub struct Phong {
     pub exponent: f32,
     pub diffuse_reflectance: Spectrum,
     pub specular_reflectance: Spectrum,
+}
+
+impl TablePlugin for Phong {
+    const PARAMS: &'static [ParamSpec] = PARAMS;
+
+    fn from_params(v: &[Spectrum]) -> Self {
+        Phong::new(v[0].x, v[1], v[2])
+    }
+
+    /// kd + ks ≤ 1 in every channel (to 1e-6) when both are constants: more would reflect
+    /// more light than arrives.
+    fn check(v: &[Option<DVec3>]) -> Result<(), String> {
+        if let (Some(Some(d)), Some(Some(s))) = (v.get(1), v.get(2)) {
+            if (0..3).any(|c| d[c] + s[c] > 1.0 + 1e-6) {
+                return Err(format!(
+                    "diffuse_reflectance + specular_reflectance exceeds 1 ({d:?} + {s:?}): the surface would reflect more light than it receives"
+                ));
+            }
+        }
+        Ok(())
+    }
 }
 
 impl Phong {
@@ -61,8 +112,13 @@ impl Phong {
             0.0
         }
     }
+}
 
-    pub fn eval(&self, wi: Vec3, wo: Vec3) -> Spectrum {
+impl BsdfModel for Phong {
+    const NAME: &'static str = "phong";
+
+    #[inline]
+    fn eval(&self, wi: Vec3, wo: Vec3) -> Spectrum {
         if wi.z <= 0.0 || wo.z <= 0.0 {
             return Spectrum::ZERO;
         }
@@ -71,7 +127,8 @@ impl Phong {
         (self.diffuse_reflectance * FRAC_1_PI + self.specular_reflectance * lobe) * wo.z
     }
 
-    pub fn pdf(&self, wi: Vec3, wo: Vec3) -> f32 {
+    #[inline]
+    fn pdf(&self, wi: Vec3, wo: Vec3) -> f32 {
         if wi.z <= 0.0 || wo.z <= 0.0 {
             return 0.0;
         }
@@ -81,7 +138,8 @@ impl Phong {
         w * specular + (1.0 - w) * square_to_cosine_hemisphere_pdf(wo)
     }
 
-    pub fn sample(&self, wi: Vec3, u1: f32, u2: Vec2) -> Option<BsdfSample> {
+    #[inline]
+    fn sample(&self, wi: Vec3, u1: f32, u2: Vec2) -> Option<BsdfSample> {
         if wi.z <= 0.0 {
             return None;
         }
@@ -100,6 +158,14 @@ impl Phong {
             square_to_cosine_hemisphere(u2)
         };
         BsdfSample::smooth(wo, self.pdf(wi, wo), || self.eval(wi, wo), 1.0)
+    }
+
+    fn set_param(&mut self, index: usize, v: Spectrum) {
+        match index {
+            1 => self.diffuse_reflectance = v,
+            2 => self.specular_reflectance = v,
+            _ => {}
+        }
     }
 }
 

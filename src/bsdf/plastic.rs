@@ -140,3 +140,22 @@ impl Plastic {
         BsdfSample::smooth(wo, pdf, || self.eval(wi, wo), 1.0)
     }
 }
+
+impl super::BsdfModel for Plastic {
+    const NAME: &'static str = "plastic";
+
+    #[inline]
+    fn eval(&self, wi: Vec3, wo: Vec3) -> Spectrum {
+        Plastic::eval(self, wi, wo)
+    }
+
+    #[inline]
+    fn pdf(&self, wi: Vec3, wo: Vec3) -> f32 {
+        Plastic::pdf(self, wi, wo)
+    }
+
+    #[inline]
+    fn sample(&self, wi: Vec3, u1: f32, u2: Vec2) -> Option<BsdfSample> {
+        Plastic::sample(self, wi, u1, u2)
+    }
+}

@@ -562,6 +562,34 @@ impl Principled {
     }
 }
 
+impl super::BsdfModel for Principled {
+    const NAME: &'static str = "principled";
+
+    #[inline]
+    fn eval(&self, wi: Vec3, wo: Vec3) -> Spectrum {
+        Principled::eval(self, wi, wo)
+    }
+
+    #[inline]
+    fn pdf(&self, wi: Vec3, wo: Vec3) -> f32 {
+        Principled::pdf(self, wi, wo)
+    }
+
+    #[inline]
+    fn sample(&self, wi: Vec3, u1: f32, u2: Vec2) -> Option<BsdfSample> {
+        Principled::sample(self, wi, u1, u2)
+    }
+
+    #[inline]
+    fn has_smooth_lobe(&self, wi: Vec3) -> bool {
+        Principled::has_smooth_lobe(self, wi)
+    }
+
+    fn is_transmissive(&self) -> bool {
+        Principled::is_transmissive(self)
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

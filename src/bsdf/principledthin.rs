@@ -278,6 +278,34 @@ impl PrincipledThin {
     }
 }
 
+impl super::BsdfModel for PrincipledThin {
+    const NAME: &'static str = "principledthin";
+
+    #[inline]
+    fn eval(&self, wi: Vec3, wo: Vec3) -> Spectrum {
+        PrincipledThin::eval(self, wi, wo)
+    }
+
+    #[inline]
+    fn pdf(&self, wi: Vec3, wo: Vec3) -> f32 {
+        PrincipledThin::pdf(self, wi, wo)
+    }
+
+    #[inline]
+    fn sample(&self, wi: Vec3, u1: f32, u2: Vec2) -> Option<BsdfSample> {
+        PrincipledThin::sample(self, wi, u1, u2)
+    }
+
+    #[inline]
+    fn has_smooth_lobe(&self, wi: Vec3) -> bool {
+        PrincipledThin::has_smooth_lobe(self, wi)
+    }
+
+    fn is_transmissive(&self) -> bool {
+        PrincipledThin::is_transmissive(self)
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -66,3 +66,22 @@ impl RoughConductor {
         BsdfSample::smooth(wo, pdf, || self.eval(wi, wo), 1.0)
     }
 }
+
+impl super::BsdfModel for RoughConductor {
+    const NAME: &'static str = "roughconductor";
+
+    #[inline]
+    fn eval(&self, wi: Vec3, wo: Vec3) -> Spectrum {
+        RoughConductor::eval(self, wi, wo)
+    }
+
+    #[inline]
+    fn pdf(&self, wi: Vec3, wo: Vec3) -> f32 {
+        RoughConductor::pdf(self, wi, wo)
+    }
+
+    #[inline]
+    fn sample(&self, wi: Vec3, _u1: f32, u2: Vec2) -> Option<BsdfSample> {
+        RoughConductor::sample(self, wi, u2)
+    }
+}

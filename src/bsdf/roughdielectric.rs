@@ -140,6 +140,34 @@ impl RoughDielectric {
     }
 }
 
+impl super::BsdfModel for RoughDielectric {
+    const NAME: &'static str = "roughdielectric";
+
+    #[inline]
+    fn eval(&self, wi: Vec3, wo: Vec3) -> Spectrum {
+        RoughDielectric::eval(self, wi, wo)
+    }
+
+    #[inline]
+    fn pdf(&self, wi: Vec3, wo: Vec3) -> f32 {
+        RoughDielectric::pdf(self, wi, wo)
+    }
+
+    #[inline]
+    fn sample(&self, wi: Vec3, u1: f32, u2: Vec2) -> Option<BsdfSample> {
+        RoughDielectric::sample(self, wi, u1, u2)
+    }
+
+    #[inline]
+    fn has_smooth_lobe(&self, _wi: Vec3) -> bool {
+        true
+    }
+
+    fn is_transmissive(&self) -> bool {
+        true
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -270,3 +270,22 @@ impl RoughPlastic {
         BsdfSample::smooth(wo, pdf, || self.eval(wi, wo), 1.0)
     }
 }
+
+impl super::BsdfModel for RoughPlastic {
+    const NAME: &'static str = "roughplastic";
+
+    #[inline]
+    fn eval(&self, wi: Vec3, wo: Vec3) -> Spectrum {
+        RoughPlastic::eval(self, wi, wo)
+    }
+
+    #[inline]
+    fn pdf(&self, wi: Vec3, wo: Vec3) -> f32 {
+        RoughPlastic::pdf(self, wi, wo)
+    }
+
+    #[inline]
+    fn sample(&self, wi: Vec3, u1: f32, u2: Vec2) -> Option<BsdfSample> {
+        RoughPlastic::sample(self, wi, u1, u2)
+    }
+}

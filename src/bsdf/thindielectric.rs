@@ -8,7 +8,7 @@
 use super::fresnel::fresnel_dielectric;
 use super::{BsdfSample, Spectrum};
 use arrayvec::ArrayVec;
-use glam::Vec3;
+use glam::{Vec2, Vec3};
 
 #[derive(Clone, Debug)]
 pub struct ThinDielectric {
@@ -93,5 +93,33 @@ impl ThinDielectric {
             delta: true,
             null: true,
         }
+    }
+}
+
+impl super::BsdfModel for ThinDielectric {
+    const NAME: &'static str = "thindielectric";
+
+    #[inline]
+    fn eval(&self, wi: Vec3, wo: Vec3) -> Spectrum {
+        ThinDielectric::eval(self, wi, wo)
+    }
+
+    #[inline]
+    fn pdf(&self, wi: Vec3, wo: Vec3) -> f32 {
+        ThinDielectric::pdf(self, wi, wo)
+    }
+
+    #[inline]
+    fn sample(&self, wi: Vec3, u1: f32, _u2: Vec2) -> Option<BsdfSample> {
+        ThinDielectric::sample(self, wi, u1)
+    }
+
+    #[inline]
+    fn has_smooth_lobe(&self, _wi: Vec3) -> bool {
+        false
+    }
+
+    fn is_transmissive(&self) -> bool {
+        true
     }
 }

@@ -99,23 +99,6 @@ pub struct Layout {
     cells: Vec<Cell>,
 }
 
-/// The name of a BSDF plugin, for messages.
-fn bsdf_name(b: &Bsdf) -> &'static str {
-    match b {
-        Bsdf::Diffuse(_) => "diffuse",
-        Bsdf::Conductor(_) => "conductor",
-        Bsdf::RoughConductor(_) => "roughconductor",
-        Bsdf::Dielectric(_) => "dielectric",
-        Bsdf::ThinDielectric(_) => "thindielectric",
-        Bsdf::RoughDielectric(_) => "roughdielectric",
-        Bsdf::Plastic(_) => "plastic",
-        Bsdf::RoughPlastic(_) => "roughplastic",
-        Bsdf::Principled(_) => "principled",
-        Bsdf::PrincipledThin(_) => "principledthin",
-        Bsdf::Phong(_) => "phong",
-    }
-}
-
 /// `Ok` when material `m` is diffuse (or two-sided diffuse), else the plugin that is not.
 fn check_diffuse(materials: &[Material], m: u32) -> std::result::Result<(), &'static str> {
     match materials.get(m as usize) {
@@ -123,7 +106,7 @@ fn check_diffuse(materials: &[Material], m: u32) -> std::result::Result<(), &'st
             template: Bsdf::Diffuse(_),
             ..
         }) => Ok(()),
-        Some(Material::Leaf { template, .. }) => Err(bsdf_name(template)),
+        Some(Material::Leaf { template, .. }) => Err(template.plugin_name()),
         Some(Material::TwoSided { front, back }) => {
             check_diffuse(materials, *front)?;
             check_diffuse(materials, *back)

@@ -6,7 +6,7 @@
 
 use crate::bsdf::roughplastic::CoatingTables;
 use crate::bsdf::{
-    Bsdf, BsdfParam, Conductor, Dielectric, Diffuse, Microfacet, MicrofacetType, Phong, Plastic,
+    Bsdf, BsdfParam, Conductor, Dielectric, Diffuse, Microfacet, MicrofacetType, Plastic,
     Principled, PrincipledParams, PrincipledThin, PrincipledThinParams, RoughConductor,
     RoughDielectric, RoughPlastic, ThinDielectric,
 };
@@ -217,15 +217,6 @@ impl MaterialBuilder {
                 param(self, P::SpecularReflectance, specular_reflectance)?,
                 *nonlinear,
             )),
-            BsdfDesc::Phong {
-                exponent,
-                diffuse_reflectance,
-                specular_reflectance,
-            } => Bsdf::Phong(Phong::new(
-                *exponent as f32,
-                param(self, P::DiffuseReflectance, diffuse_reflectance)?,
-                param(self, P::SpecularReflectance, specular_reflectance)?,
-            )),
             BsdfDesc::RoughPlastic {
                 distribution,
                 int_ior,
@@ -258,6 +249,21 @@ impl MaterialBuilder {
                     *nonlinear,
                     &tables,
                 ))
+            }
+            BsdfDesc::Table { plugin, params } => {
+                let info = crate::bsdf::table_plugin(plugin)
+                    .ok_or_else(|| Error::Invalid(format!("no BSDF plugin named '{plugin}'")))?;
+                let mut values = Vec::with_capacity(params.len());
+                for (i, (spec, t)) in info.params.iter().zip(params).enumerate() {
+                    let i = i as u8;
+                    let slot = if spec.is_scalar() {
+                        P::TableScalar(i)
+                    } else {
+                        P::TableColor(i)
+                    };
+                    values.push(param(self, slot, t)?);
+                }
+                (info.build)(&values)
             }
             _ => unreachable!("adapters are built by MaterialBuilder::build"),
         };

@@ -4,7 +4,7 @@
 
 use super::texture::{texture_desc, texture_or, texture_param, Children};
 use super::*;
-use crate::bsdf::BsdfParam;
+use crate::bsdf::{BsdfParam, ParamKind, PluginInfo};
 use crate::spectrum::ColorRole;
 
 #[derive(Clone, Debug, PartialEq)]
@@ -64,11 +64,11 @@ pub enum BsdfDesc {
         specular_reflectance: TextureDesc,
         nonlinear: bool,
     },
-    /// Mitsuba 0.6's `phong` (Mitsuba 3 has none): the modified Phong model.
-    Phong {
-        exponent: f64,
-        diffuse_reflectance: TextureDesc,
-        specular_reflectance: TextureDesc,
+    /// A plugin read through its parameter table (`crate::bsdf::TABLE_PLUGINS`): one
+    /// texture (a plain number as a constant) per parameter, in table order.
+    Table {
+        plugin: &'static str,
+        params: Vec<TextureDesc>,
     },
     /// `mask`: `opacity` (one value) of the nested BSDF, the rest passes through.
     Mask {
@@ -193,16 +193,12 @@ impl BsdfDesc {
                 diffuse_reflectance,
                 specular_reflectance,
                 ..
-            }
-            | BsdfDesc::Phong {
-                diffuse_reflectance,
-                specular_reflectance,
-                ..
             } => {
                 tex(diffuse_reflectance);
                 tex(specular_reflectance);
             }
             BsdfDesc::Principled(p) => p.params.iter().for_each(|(_, t)| tex(t)),
+            BsdfDesc::Table { params, .. } => params.iter().for_each(tex),
             BsdfDesc::Null => {}
             BsdfDesc::TwoSided { front, back } => {
                 front.files(out);
@@ -258,6 +254,12 @@ pub(super) fn bsdf_desc(cx: &Ctx, o: &Arc<Object>) -> Result<BsdfDesc> {
     let mut p = Props::new(o);
     let mut ch = Children::new(o);
     let refl = ColorRole::Reflectance;
+    if let Some(info) = crate::bsdf::table_plugin(&o.plugin) {
+        let desc = table_desc(cx, &mut p, &mut ch, o, info)?;
+        cx.finish(p)?;
+        ch.finish()?;
+        return Ok(desc);
+    }
     let desc = match o.plugin.as_str() {
         "diffuse" => BsdfDesc::Diffuse {
             reflectance: texture_or(
@@ -269,53 +271,6 @@ pub(super) fn bsdf_desc(cx: &Ctx, o: &Arc<Object>) -> Result<BsdfDesc> {
                 TextureDesc::value(0.5),
             )?,
         },
-        "phong" => {
-            let exponent = p.float("exponent", 30.0)?;
-            if !(0.0..=1e5).contains(&exponent) {
-                return Err(Error::scene(
-                    &o.location,
-                    format!(
-                        "the exponent of {} must be in [0, 1e5], got {exponent}",
-                        describe(o)
-                    ),
-                ));
-            }
-            let diffuse_reflectance = texture_or(
-                cx,
-                &mut p,
-                &mut ch,
-                "diffuse_reflectance",
-                refl,
-                TextureDesc::value(0.5),
-            )?;
-            let specular_reflectance = texture_or(
-                cx,
-                &mut p,
-                &mut ch,
-                "specular_reflectance",
-                refl,
-                TextureDesc::value(0.2),
-            )?;
-            if let (Some(d), Some(s)) = (
-                diffuse_reflectance.constant_rgb(),
-                specular_reflectance.constant_rgb(),
-            ) {
-                if (0..3).any(|c| d[c] + s[c] > 1.0 + 1e-6) {
-                    return Err(Error::scene(
-                        &o.location,
-                        format!(
-                            "{}: diffuse_reflectance + specular_reflectance exceeds 1 ({:?} + {:?}): the surface would reflect more light than it receives",
-                            describe(o), d, s
-                        ),
-                    ));
-                }
-            }
-            BsdfDesc::Phong {
-                exponent,
-                diffuse_reflectance,
-                specular_reflectance,
-            }
-        }
         "twosided" => {
             if let Some((true, loc)) = p
                 .take("allow_transmission")
@@ -570,6 +525,59 @@ pub(super) fn bsdf_desc(cx: &Ctx, o: &Arc<Object>) -> Result<BsdfDesc> {
     cx.finish(p)?;
     ch.finish()?;
     Ok(desc)
+}
+
+/// A plugin with a parameter table: each parameter from the scene or its default, a constant
+/// checked against the parameter's range, then the plugin's check across parameters.
+fn table_desc(
+    cx: &Ctx,
+    p: &mut Props,
+    ch: &mut Children,
+    o: &Object,
+    info: &'static PluginInfo,
+) -> Result<BsdfDesc> {
+    let mut params = Vec::with_capacity(info.params.len());
+    let mut constants = Vec::with_capacity(info.params.len());
+    for spec in info.params {
+        let default = TextureDesc::value(spec.default);
+        let t = match spec.kind {
+            ParamKind::Color(role) => texture_or(cx, p, ch, spec.name, role, default)?,
+            ParamKind::Number => texture_or(cx, p, ch, spec.name, ColorRole::Unbounded, default)?,
+            ParamKind::Float => TextureDesc::value(p.float(spec.name, spec.default)?),
+        };
+        let constant = if spec.is_scalar() {
+            t.constant_scalar().map(DVec3::splat)
+        } else {
+            t.constant_rgb()
+        };
+        if let Some(c) = constant {
+            let bad = if spec.is_scalar() {
+                (!(spec.min..=spec.max).contains(&c.x)).then(|| format!("{}", c.x))
+            } else {
+                (!(0..3).all(|i| (spec.min..=spec.max).contains(&c[i]))).then(|| format!("{c:?}"))
+            };
+            if let Some(v) = bad {
+                return Err(Error::scene(
+                    &o.location,
+                    format!(
+                        "the {} of {} must be in [{}, {}], got {v}",
+                        spec.name,
+                        describe(o),
+                        spec.min,
+                        spec.max
+                    ),
+                ));
+            }
+        }
+        constants.push(constant);
+        params.push(t);
+    }
+    (info.check)(&constants)
+        .map_err(|m| Error::scene(&o.location, format!("{}: {m}", describe(o))))?;
+    Ok(BsdfDesc::Table {
+        plugin: info.name,
+        params,
+    })
 }
 
 /// `principled` and `principledthin` (Mitsuba 3.9.1: every parameter but `eta`/`specular`
