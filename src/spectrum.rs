@@ -37,10 +37,23 @@
 
 use glam::DVec3;
 
-/// Mitsuba's luminance of a linear sRGB colour (its `luminance()` weights).
+/// An RGB triple of linear sRGB-primaries values: what penumbra renders (RGB mode).
+pub type Spectrum = glam::Vec3;
+
+/// Mitsuba's luminance of a linear sRGB colour (its `luminance()` weights): the one
+/// luminance of penumbra (Russian roulette, texture means, error estimates).
 #[inline]
 pub fn luminance(c: glam::Vec3) -> f32 {
     0.212671 * c.x + 0.715160 * c.y + 0.072169 * c.z
+}
+
+/// The exact sRGB decode (IEC 61966-2-1) of one channel in [0, 1].
+pub fn srgb_to_linear(x: f64) -> f64 {
+    if x <= 0.04045 {
+        x / 12.92
+    } else {
+        ((x + 0.055) / 1.055).powf(2.4)
+    }
 }
 
 /// How a plugin reads a colour parameter, which decides how a spectrum becomes RGB

@@ -132,9 +132,8 @@ fn hidden_lights_scene(integrator: &str, hide: bool, lights: usize) -> String {
 /// beside the front emitter (which see the wall in both cases).
 #[test]
 fn hide_emitters_passes_camera_rays_through_area_lights() {
-    // direct and whitted share the pass-through (integrator::pass_through_emitters); path
-    // passes through in its own loop; volpath and volpathmis have their own
-    // (skip_area_emitters, media aware)
+    // direct, whitted, volpath and volpathmis share the pass-through
+    // (integrator::pass_through_emitters); path passes through in its own loop
     for integrator in [
         r#"type="path"><integer name="max_depth" value="2"/>"#,
         r#"type="direct">"#,
@@ -185,7 +184,8 @@ fn hide_emitters_passes_camera_rays_through_area_lights() {
     }
 }
 
-/// In `direct` and `whitted`, a hidden camera ray passes through at most 256 stacked area
+/// In `direct`, `whitted`, `volpath` and `volpathmis`, a hidden camera ray passes through at
+/// most 256 stacked area
 /// lights (the documented limit of `integrator::pass_through_emitters`, which keeps a
 /// pathological stack from costing unbounded rays): behind 200 of them it still reaches the
 /// lit wall, behind 300 the pixel is black. The lights are small, black (reflectance 0)
@@ -196,6 +196,8 @@ fn hide_emitters_gives_up_after_256_stacked_lights() {
     for integrator in [
         r#"type="direct">"#,
         r#"type="whitted"><integer name="max_depth" value="2"/>"#,
+        r#"type="volpath"><integer name="max_depth" value="2"/>"#,
+        r#"type="volpathmis"><integer name="max_depth" value="2"/>"#,
     ] {
         let stack = |count: usize| {
             let xml = hidden_lights_scene(integrator, true, count);

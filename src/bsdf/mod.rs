@@ -36,8 +36,7 @@ pub use thindielectric::ThinDielectric;
 use arrayvec::ArrayVec;
 use glam::{Vec2, Vec3};
 
-/// An RGB triple of linear sRGB-primaries values.
-pub type Spectrum = Vec3;
+pub use crate::spectrum::Spectrum;
 
 /// A direction sampled from a BSDF.
 #[derive(Clone, Copy, Debug)]

@@ -14,10 +14,10 @@
 //! solid-angle conversion.
 
 use super::{DirectionSample, EmitterPosition, EmitterRay};
-use crate::bsdf::Spectrum;
 use crate::geometry::{offset_ray_origin, Frame, Ray};
 use crate::sampling::{square_to_cosine_hemisphere, square_to_uniform_cone};
 use crate::shape::{Shape, ShapeGeometry, Sphere, SurfaceInteraction, UvGrid};
+use crate::spectrum::Spectrum;
 use crate::texture::{Texture, TextureContext};
 use glam::{DVec3, Vec2, Vec3};
 

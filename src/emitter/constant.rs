@@ -2,8 +2,8 @@
 //! infinity, sampled uniformly over the sphere of directions (pdf 1 / 4π).
 
 use super::DirectionSample;
-use crate::bsdf::Spectrum;
 use crate::sampling::square_to_uniform_sphere;
+use crate::spectrum::Spectrum;
 use glam::{Vec2, Vec3};
 
 /// 1 / 4π.

@@ -2,7 +2,7 @@
 //! irradiance E (W/m²) on a surface perpendicular to it (a Dirac delta in direction).
 
 use super::DirectionSample;
-use crate::bsdf::Spectrum;
+use crate::spectrum::Spectrum;
 use glam::Vec3;
 
 #[derive(Clone, Debug)]

@@ -14,8 +14,8 @@
 //! solid angle is p(u, v) / (2π² sin θ).
 
 use super::DirectionSample;
-use crate::bsdf::Spectrum;
 use crate::sampling::Distribution2D;
+use crate::spectrum::Spectrum;
 use glam::{Mat3, Vec2, Vec3};
 use std::f32::consts::PI;
 

@@ -19,10 +19,10 @@ pub use point::PointEmitter;
 pub use projector::ProjectorEmitter;
 pub use spot::SpotEmitter;
 
-use crate::bsdf::Spectrum;
 use crate::geometry::{Frame, Ray};
 use crate::sampling::square_to_uniform_disk_concentric;
 use crate::shape::Shape;
+use crate::spectrum::Spectrum;
 use glam::{Vec2, Vec3};
 
 /// A ray leaving an emitter, for light tracing (Mitsuba's `Emitter::sample_ray`): the ray

@@ -2,9 +2,9 @@
 //! from a point at distance r with irradiance I / r² (a Dirac delta in position).
 
 use super::{DirectionSample, EmitterRay};
-use crate::bsdf::Spectrum;
 use crate::geometry::Ray;
 use crate::sampling::square_to_uniform_sphere;
+use crate::spectrum::Spectrum;
 use glam::{Vec2, Vec3};
 
 #[derive(Clone, Debug)]

@@ -135,7 +135,7 @@ impl ProjectorEmitter {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::bsdf::Spectrum;
+    use crate::spectrum::Spectrum;
 
     /// A projector at height 1 over the plane z = 0 looking down, fov 90° (t = 1), square
     /// image: a white diffuse plane under it has radiance E (Mitsuba's normalisation), and

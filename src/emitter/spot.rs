@@ -14,9 +14,9 @@
 //! | `to_world` | identity | the light looks down local +z |
 
 use super::{DirectionSample, EmitterRay};
-use crate::bsdf::Spectrum;
 use crate::geometry::Ray;
 use crate::sampling::square_to_uniform_cone;
+use crate::spectrum::Spectrum;
 use crate::texture::{Texture, TextureContext};
 use glam::{DMat3, DMat4, DVec3, Mat3, Vec2, Vec3};
 

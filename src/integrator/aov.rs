@@ -17,12 +17,12 @@
 //! own with the same seed, so all groups see the same pixel samples
 //! ([`crate::render::render_channels`]).
 
-use crate::bsdf::Spectrum;
 use crate::geometry::Ray;
 use crate::integrator::{Integrator, PathStats};
 use crate::sampler::SampleStream;
 pub use crate::scene::description::AovKind;
 use crate::scene::Scene;
+use crate::spectrum::Spectrum;
 use glam::Vec3;
 
 #[derive(Clone, Debug)]

@@ -12,7 +12,6 @@
 //! analytic 0.0398). penumbra averages the n samples like all others, so its image is the
 //! same for every n.
 
-use crate::bsdf::Spectrum;
 use crate::geometry::Ray;
 use crate::integrator::{
     emission_at, emitter_pdf_at, pass_through_emitters, sample_emitter, PathStats,
@@ -20,6 +19,7 @@ use crate::integrator::{
 use crate::sampler::SampleStream;
 use crate::sampling::mis_power;
 use crate::scene::Scene;
+use crate::spectrum::Spectrum;
 
 #[derive(Clone, Debug)]
 pub struct DirectIntegrator {
@@ -56,7 +56,7 @@ impl DirectIntegrator {
         let mut hit = scene.intersect(&ray);
         if self.hide_emitters {
             // Camera rays pass through area emitters; the environment stays hidden.
-            hit = pass_through_emitters(scene, &ray, hit, stats);
+            hit = pass_through_emitters(scene, ray.d, hit, stats);
         } else {
             result += emission_at(scene, hit.as_ref(), ray.d);
         }

@@ -20,13 +20,13 @@ pub use volpath::VolPathIntegrator;
 pub use volpathmis::VolPathMisIntegrator;
 pub use whitted::WhittedIntegrator;
 
-use crate::bsdf::Spectrum;
 use crate::emitter::Emitter;
 use crate::geometry::Ray;
 use crate::material::ShadingBsdf;
 use crate::sampler::SampleStream;
 use crate::scene::Scene;
 use crate::shape::SurfaceInteraction;
+use crate::spectrum::Spectrum;
 use glam::{Vec2, Vec3};
 
 /// Counters gathered while tracing, summed over a render.
@@ -123,17 +123,19 @@ pub(crate) fn emitter_pdf_at(
     }
 }
 
-/// Area emitters a hidden camera ray passes through before giving up (a ray crossing that
-/// many stacked lights renders black).
+/// Area emitters a hidden camera ray passes through before giving up (a ray crossing more
+/// stacked lights renders black). One rule for every integrator with `hide_emitters` that
+/// passes through emitters in a separate step (direct, whitted, volpath, volpathmis).
 const MAX_SKIPPED_EMITTERS: u32 = 256;
 
-/// Where a camera ray ends when it passes through area emitters (`hide_emitters`): `hit`
+/// Where a camera ray of direction `d` ends when it passes through area emitters
+/// (`hide_emitters`, Mitsuba's `skip_area_emitters`): `hit`
 /// (the ray's first hit) if it does not emit, else the first surface after the emitters
 /// that does not; `None` when the ray leaves the scene or crosses more than
 /// [`MAX_SKIPPED_EMITTERS`] of them.
 pub(crate) fn pass_through_emitters(
     scene: &Scene,
-    ray: &Ray,
+    d: Vec3,
     mut hit: Option<SurfaceInteraction>,
     stats: &mut PathStats,
 ) -> Option<SurfaceInteraction> {
@@ -146,7 +148,7 @@ pub(crate) fn pass_through_emitters(
         if skipped > MAX_SKIPPED_EMITTERS {
             return None;
         }
-        let next = Scene::spawn_ray(si, ray.d);
+        let next = Scene::spawn_ray(si, d);
         stats.rays += 1;
         hit = scene.intersect(&next);
     }

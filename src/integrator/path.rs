@@ -7,13 +7,13 @@
 //! emitters seen directly and 2 adds direct lighting; Russian roulette applies once depth ≥
 //! `rr_depth`, continuing with probability q = min(max(throughput) · η², 0.95).
 
-use crate::bsdf::Spectrum;
 use crate::geometry::Ray;
 use crate::integrator::{sample_emitter, PathStats};
 use crate::material::ShadingBsdf;
 use crate::sampler::SampleStream;
 use crate::sampling::mis_power;
 use crate::scene::Scene;
+use crate::spectrum::Spectrum;
 use glam::Vec3;
 
 #[derive(Clone, Debug)]

@@ -22,11 +22,11 @@
 //! [`Emitter::sample_ray`]: crate::emitter::Emitter::sample_ray
 //! [`ShadingBsdf::importance`]: crate::material::ShadingBsdf::importance
 
-use crate::bsdf::Spectrum;
 use crate::geometry::{offset_ray_origin, Ray, SHADOW_EPSILON};
 use crate::integrator::PathStats;
 use crate::sampler::SampleStream;
 use crate::scene::Scene;
+use crate::spectrum::Spectrum;
 use glam::{Vec2, Vec3};
 
 #[derive(Clone, Debug)]

@@ -382,7 +382,9 @@ fn rng(seed: u64, cell: usize, side: u8) -> rand_pcg::Pcg32 {
     )
 }
 
-fn luminance(s: Spectrum) -> f64 {
+/// The mean of the three channels: a patch's power for the shooting order (not a
+/// luminance: the order only needs a measure that is positive where any channel is).
+fn channel_mean(s: Spectrum) -> f64 {
     (s.x as f64 + s.y as f64 + s.z as f64) / 3.0
 }
 
@@ -488,7 +490,7 @@ impl Solution {
         // Progressive refinement.
         let mut radiosity: Vec<Spectrum> = patches.iter().map(|p| p.emission).collect();
         let mut unshot = radiosity.clone();
-        let power = |i: usize, u: &[Spectrum]| patches[i].area * luminance(u[i]);
+        let power = |i: usize, u: &[Spectrum]| patches[i].area * channel_mean(u[i]);
         let emitted: f64 = (0..patches.len()).map(|i| power(i, &unshot)).sum();
         let mut remaining = emitted;
         let stop = params.residual as f64 * emitted;

@@ -256,10 +256,6 @@ pub fn update(
     (n_new, r_new, (tau + phi) * (r_new * r_new) / (r * r))
 }
 
-fn luminance(s: Spectrum) -> f32 {
-    0.2126 * s.x + 0.7152 * s.y + 0.0722 * s.z
-}
-
 impl Sppm {
     /// Step 1 for one pixel: the emission seen and the direct lighting at the visible
     /// point, times the throughput; the visible point goes to `vp` (not `live` without one),
@@ -449,7 +445,10 @@ impl Sppm {
                 break;
             };
             let next = beta * bs.weight * correction;
-            let (l_old, l_new) = (luminance(beta), luminance(next));
+            let (l_old, l_new) = (
+                crate::spectrum::luminance(beta),
+                crate::spectrum::luminance(next),
+            );
             if !(l_old > 0.0 && l_new > 0.0 && next.is_finite()) {
                 break;
             }

@@ -25,7 +25,6 @@
 //! | `rr_depth` | 5 |
 //! | `hide_emitters` | false |
 
-use crate::bsdf::Spectrum;
 use crate::emitter::DirectionSample;
 use crate::geometry::Ray;
 use crate::integrator::{emission_at, emitter_pdf_at, PathStats};
@@ -35,6 +34,7 @@ use crate::sampler::SampleStream;
 use crate::sampling::mis_power;
 use crate::scene::Scene;
 use crate::shape::SurfaceInteraction;
+use crate::spectrum::Spectrum;
 use glam::Vec3;
 
 #[derive(Clone, Debug)]
@@ -238,26 +238,6 @@ impl ShadowWeights for Transmittance {
     }
 }
 
-/// Skips the area emitters a camera ray meets first, for `hide_emitters` (Mitsuba's
-/// `skip_area_emitters`).
-pub(crate) fn skip_area_emitters(
-    scene: &Scene,
-    mut si: Option<SurfaceInteraction>,
-    d: Vec3,
-    stats: &mut PathStats,
-) -> Option<SurfaceInteraction> {
-    let mut guard = 0;
-    while let Some(s) = si {
-        if scene.shapes[s.shape as usize].emitter.is_none() || guard >= 1024 {
-            break;
-        }
-        guard += 1;
-        stats.rays += 1;
-        si = scene.intersect(&Scene::spawn_ray(&s, d));
-    }
-    si
-}
-
 impl VolPathIntegrator {
     /// Next-event estimation from `from`: the emitter's radiance over the sample's density
     /// times the shadow ray's transmittance, and the sample.
@@ -401,7 +381,7 @@ impl VolPathIntegrator {
                 }
             };
             if self.hide_emitters && depth == 0 {
-                si = skip_area_emitters(scene, si, ray.d, stats);
+                si = super::pass_through_emitters(scene, ray.d, si, stats);
             }
             if !(depth == 0 && self.hide_emitters) {
                 let le = emission_at(scene, si.as_ref(), ray.d);

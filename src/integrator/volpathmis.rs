@@ -25,10 +25,8 @@
 //! | `use_spectral_mis` | true |
 
 use super::volpath::{
-    pass_collision, pick_channel, skip_area_emitters, trace_shadow, track_step, ShadowWeights,
-    Vertex,
+    pass_collision, pick_channel, trace_shadow, track_step, ShadowWeights, Vertex,
 };
-use crate::bsdf::Spectrum;
 use crate::emitter::DirectionSample;
 use crate::geometry::Ray;
 use crate::integrator::{emission_at, emitter_pdf_at, PathStats};
@@ -37,6 +35,7 @@ use crate::medium::{mean3, safe_div3, Medium, MediumInteraction};
 use crate::sampler::SampleStream;
 use crate::scene::Scene;
 use crate::shape::SurfaceInteraction;
+use crate::spectrum::Spectrum;
 use glam::Vec3;
 
 #[derive(Clone, Debug)]
@@ -316,7 +315,7 @@ impl VolPathMisIntegrator {
                 }
             };
             if self.hide_emitters && depth == 0 {
-                si = skip_area_emitters(scene, si, ray.d, stats);
+                si = super::pass_through_emitters(scene, ray.d, si, stats);
             }
             if !(depth == 0 && self.hide_emitters) {
                 let le = emission_at(scene, si.as_ref(), ray.d);

@@ -120,7 +120,7 @@ impl WhittedIntegrator {
             let mut hit = scene.intersect(&ray);
             if depth == 1 && self.hide_emitters {
                 // Camera rays pass through area emitters; the environment stays hidden.
-                hit = pass_through_emitters(scene, &ray, hit, stats);
+                hit = pass_through_emitters(scene, ray.d, hit, stats);
             } else {
                 result += weight * crate::integrator::emission_at(scene, hit.as_ref(), ray.d);
             }

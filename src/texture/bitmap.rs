@@ -157,14 +157,7 @@ impl Format {
     }
 }
 
-/// The exact sRGB decode (IEC 61966-2-1).
-pub fn srgb_to_linear(x: f64) -> f64 {
-    if x <= 0.04045 {
-        x / 12.92
-    } else {
-        ((x + 0.055) / 1.055).powf(2.4)
-    }
-}
+use crate::spectrum::srgb_to_linear;
 
 #[derive(Clone, Debug)]
 enum Texels {

@@ -20,7 +20,7 @@
 //! ```
 
 use super::{Texture, TextureContext, UvTransform};
-use crate::bsdf::Spectrum;
+use crate::spectrum::Spectrum;
 
 #[derive(Clone, Debug)]
 pub struct Checkerboard {

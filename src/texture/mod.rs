@@ -26,8 +26,8 @@ pub use checkerboard::Checkerboard;
 pub use mesh_attribute::MeshAttributeTexture;
 pub use volume::VolumeTexture;
 
-use crate::bsdf::Spectrum;
 use crate::shape::Mesh;
+use crate::spectrum::Spectrum;
 use glam::{DMat3, Vec2, Vec3};
 
 /// What a texture lookup needs of the shading point: the surface coordinates, the position

@@ -22,8 +22,8 @@
 //! </texture>
 //! ```
 
-use crate::bsdf::Spectrum;
 use crate::spectrum::luminance;
+use crate::spectrum::Spectrum;
 use crate::volume::Volume;
 use glam::Vec3;
 use std::sync::Arc;

@@ -237,14 +237,6 @@ pub(super) fn ascii_value(token: &[u8], ty: Type) -> Option<Value> {
     }
 }
 
-fn srgb_to_linear(s: f64) -> f64 {
-    if s <= 0.04045 {
-        s / 12.92
-    } else {
-        ((s + 0.055) / 1.055).powf(2.4)
-    }
-}
-
 /// A scalar property as Mitsuba 3.9.1's converter turns it into an `f32` (module doc).
 pub(super) fn to_f32(v: Value, ty: Type) -> f32 {
     match v {
@@ -260,7 +252,7 @@ pub(super) fn to_f32(v: Value, ty: Type) -> f32 {
                 // uchar and long: not normalised by the installed Mitsuba.
                 _ => return i as f32,
             };
-            srgb_to_linear(i as f64 / max) as f32
+            crate::spectrum::srgb_to_linear(i as f64 / max) as f32
         }
     }
 }

@@ -344,7 +344,7 @@ fn envmap_texels(path: &std::path::Path) -> Result<crate::io::exr::RgbImage> {
     let value = |i: usize| {
         let v = img.samples.value(i);
         if decode {
-            crate::texture::bitmap::srgb_to_linear(v as f64) as f32
+            crate::spectrum::srgb_to_linear(v as f64) as f32
         } else {
             v
         }
