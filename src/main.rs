@@ -43,6 +43,8 @@ enum Command {
     /// single pixels, change exposure, error maps, metrics, convergence plots. A static
     /// folder that opens from disk.
     Report(ReportArgs),
+    /// Print the BSDF plugins' parameter tables (name, kind, default, range) as Markdown.
+    Plugins,
 }
 
 fn main() {
@@ -57,6 +59,10 @@ fn main() {
             Command::Compare(args) => run_compare(args),
             Command::Converge(args) => run_converge(args),
             Command::Report(args) => run_report(args),
+            Command::Plugins => {
+                print!("{}", penumbra::bsdf::plugin::markdown());
+                Ok(())
+            }
         },
     };
     if let Err(e) = result {

@@ -1022,9 +1022,7 @@ fn simple_shapes_with_defaults() {
 fn default_bsdf_is_diffuse_one_half() {
     assert_eq!(
         BsdfDesc::default_diffuse(),
-        BsdfDesc::Diffuse {
-            reflectance: TextureDesc::rgb(DVec3::splat(0.5))
-        }
+        BsdfDesc::diffuse(TextureDesc::rgb(DVec3::splat(0.5)))
     );
 }
 
@@ -1313,9 +1311,7 @@ fn diffuse_reflectance() {
     );
     assert_eq!(
         s.bsdf,
-        BsdfDesc::Diffuse {
-            reflectance: TextureDesc::rgb(DVec3::new(0.2, 0.4, 0.6))
-        }
+        BsdfDesc::diffuse(TextureDesc::rgb(DVec3::new(0.2, 0.4, 0.6)))
     );
     let s = one_shape(
         r#"<shape type="rectangle">
@@ -1324,9 +1320,7 @@ fn diffuse_reflectance() {
     );
     assert_eq!(
         s.bsdf,
-        BsdfDesc::Diffuse {
-            reflectance: TextureDesc::rgb(DVec3::splat(0.25))
-        }
+        BsdfDesc::diffuse(TextureDesc::rgb(DVec3::splat(0.25)))
     );
     let s = one_shape(
         r#"<shape type="rectangle">
@@ -1335,9 +1329,7 @@ fn diffuse_reflectance() {
     );
     assert_eq!(
         s.bsdf,
-        BsdfDesc::Diffuse {
-            reflectance: TextureDesc::rgb(DVec3::splat(0.75))
-        }
+        BsdfDesc::diffuse(TextureDesc::rgb(DVec3::splat(0.75)))
     );
     let s = one_shape(r#"<shape type="rectangle"><bsdf type="diffuse"/></shape>"#);
     assert_eq!(s.bsdf, BsdfDesc::default_diffuse());
@@ -1352,9 +1344,7 @@ fn twosided_with_one_nested_bsdf_uses_it_on_both_sides() {
     </bsdf>
 </shape>"#,
     );
-    let inner = BsdfDesc::Diffuse {
-        reflectance: TextureDesc::rgb(DVec3::new(0.1, 0.2, 0.3)),
-    };
+    let inner = BsdfDesc::diffuse(TextureDesc::rgb(DVec3::new(0.1, 0.2, 0.3)));
     assert_eq!(
         s.bsdf,
         BsdfDesc::TwoSided {
@@ -1377,12 +1367,10 @@ fn twosided_with_two_nested_bsdfs() {
     assert_eq!(
         s.bsdf,
         BsdfDesc::TwoSided {
-            front: Box::new(BsdfDesc::Diffuse {
-                reflectance: TextureDesc::rgb(DVec3::new(0.1, 0.2, 0.3))
-            }),
-            back: Box::new(BsdfDesc::Diffuse {
-                reflectance: TextureDesc::rgb(DVec3::splat(0.9))
-            }),
+            front: Box::new(BsdfDesc::diffuse(TextureDesc::rgb(DVec3::new(
+                0.1, 0.2, 0.3
+            )))),
+            back: Box::new(BsdfDesc::diffuse(TextureDesc::rgb(DVec3::splat(0.9)))),
         }
     );
 }
@@ -1459,9 +1447,7 @@ fn referenced_bsdfs() {
 <shape type="cube"><ref id="two"/></shape>
 <shape type="disk"><ref name="bsdf" id="red"/></shape>"#,
     ));
-    let red = BsdfDesc::Diffuse {
-        reflectance: TextureDesc::rgb(DVec3::new(0.8, 0.1, 0.1)),
-    };
+    let red = BsdfDesc::diffuse(TextureDesc::rgb(DVec3::new(0.8, 0.1, 0.1)));
     assert_eq!(d.shapes.len(), 3);
     assert_eq!(d.shapes[0].bsdf, red);
     assert_eq!(
@@ -1562,12 +1548,7 @@ fn area_emitter_radiance() {
         })
     );
     // Mitsuba gives an emitter without a BSDF a black diffuse one.
-    assert_eq!(
-        s.bsdf,
-        BsdfDesc::Diffuse {
-            reflectance: TextureDesc::rgb(DVec3::ZERO)
-        }
-    );
+    assert_eq!(s.bsdf, BsdfDesc::diffuse(TextureDesc::rgb(DVec3::ZERO)));
     let s = one_shape(
         r#"<shape type="sphere">
     <emitter type="area"><float name="radiance" value="3"/></emitter>
@@ -1580,12 +1561,7 @@ fn area_emitter_radiance() {
             radiance: TextureDesc::value(3.0)
         })
     );
-    assert_eq!(
-        s.bsdf,
-        BsdfDesc::Diffuse {
-            reflectance: TextureDesc::rgb(DVec3::ZERO)
-        }
-    );
+    assert_eq!(s.bsdf, BsdfDesc::diffuse(TextureDesc::rgb(DVec3::ZERO)));
 }
 
 #[test]
@@ -1774,9 +1750,7 @@ fn whole_scene_defaults_are_mitsubas() {
     );
     assert_eq!(
         d.shapes[0].bsdf,
-        BsdfDesc::Diffuse {
-            reflectance: TextureDesc::rgb(DVec3::splat(0.5))
-        }
+        BsdfDesc::diffuse(TextureDesc::rgb(DVec3::splat(0.5)))
     );
 }
 
@@ -2062,8 +2036,9 @@ fn spectra_take_the_role_of_their_parameter() {
              <bsdf type="diffuse"><spectrum name="reflectance" value="400:2, 700:2"/></bsdf>
            </shape>"#,
     );
-    match &d.shapes[0].bsdf {
-        BsdfDesc::Conductor { eta, k, .. } => {
+    let bsdf = &d.shapes[0].bsdf;
+    match (bsdf.plugin(), bsdf.param("eta"), bsdf.param("k")) {
+        (Some("conductor"), Some(eta), Some(k)) => {
             let (eta, k) = (eta.constant_rgb().unwrap(), k.constant_rgb().unwrap());
             assert!(close(eta, DVec3::splat(0.789), 1e-7), "{eta}");
             assert!(k.z < k.x && k.x > 1.0, "unbounded, not clamped: {k}");
@@ -2082,16 +2057,19 @@ fn spectra_take_the_role_of_their_parameter() {
                 "{radiance:?}"
             );
         }
-        other => panic!("{other:?}"),
+        _ => panic!("{bsdf:?}"),
     }
-    match &d.shapes[1].bsdf {
-        BsdfDesc::Diffuse { reflectance } => {
+    match (
+        d.shapes[1].bsdf.plugin(),
+        d.shapes[1].bsdf.param("reflectance"),
+    ) {
+        (Some("diffuse"), Some(reflectance)) => {
             assert!(
                 close(reflectance.constant_rgb().unwrap(), DVec3::ONE, 0.0),
                 "clamped to 1: {reflectance:?}"
             )
         }
-        other => panic!("{other:?}"),
+        _ => panic!("{:?}", d.shapes[1].bsdf),
     }
     assert!(
         d.warnings.iter().any(|w| w.contains("clamping")),
@@ -2126,15 +2104,11 @@ fn a_light_without_a_bsdf_is_black() {
     );
     assert_eq!(
         d.shapes[0].bsdf,
-        BsdfDesc::Diffuse {
-            reflectance: TextureDesc::rgb(DVec3::ZERO)
-        }
+        BsdfDesc::diffuse(TextureDesc::rgb(DVec3::ZERO))
     );
     assert_eq!(
         d.shapes[1].bsdf,
-        BsdfDesc::Diffuse {
-            reflectance: TextureDesc::rgb(DVec3::splat(0.5))
-        }
+        BsdfDesc::diffuse(TextureDesc::rgb(DVec3::splat(0.5)))
     );
 }
 
@@ -2315,11 +2289,9 @@ fn equal_alphas_unbounded_srgb_and_max_value() {
     };
     let d =
         shape(r#"<float name="alpha_u" value="0.3"/><float name="alpha_v" value="0.3"/>"#).unwrap();
-    let BsdfDesc::RoughPlastic { distribution, .. } = &d.shapes[0].bsdf else {
-        panic!("{:?}", d.shapes[0].bsdf)
-    };
-    assert_eq!(distribution.alpha_u, TextureDesc::value(0.3));
-    assert_eq!(distribution.alpha_v, TextureDesc::value(0.3));
+    let bsdf = &d.shapes[0].bsdf;
+    assert_eq!(bsdf.plugin(), Some("roughplastic"));
+    assert_eq!(bsdf.param("alpha"), Some(&TextureDesc::value(0.3)));
     let e = shape(r#"<float name="alpha_u" value="0.3"/><float name="alpha_v" value="0.2"/>"#)
         .unwrap_err()
         .to_string();
@@ -2332,9 +2304,7 @@ fn equal_alphas_unbounded_srgb_and_max_value() {
     let e = srgb("").unwrap_err().to_string();
     assert!(e.contains("invalid RGB reflectance value"), "{e}");
     let d = srgb(r#"<boolean name="unbounded" value="true"/>"#).unwrap();
-    let BsdfDesc::Diffuse { reflectance } = &d.shapes[0].bsdf else {
-        panic!()
-    };
+    let reflectance = d.shapes[0].bsdf.param("reflectance").unwrap();
     assert_eq!(reflectance.constant_rgb(), Some(DVec3::new(1.5, 0.5, 0.2)));
     let d = desc(&with_sensor(
         r#"<medium type="heterogeneous" id="m"><volume type="gridvolume" name="sigma_t"><string name="filename" value="g.vol"/><float name="max_value" value="7"/></volume></medium>
@@ -2344,4 +2314,136 @@ fn equal_alphas_unbounded_srgb_and_max_value() {
         panic!("{:?}", d.media[0].sigma_t)
     };
     assert_eq!(*max_value, Some(7.0));
+}
+
+/// The kinds of parameter the BSDF tables read (issue 41), each with its defaults and its
+/// refusals: choices, flags, IOR presets by name, conductor `material` presets, the
+/// roughness pair, roughplastic's numeric alpha.
+#[test]
+fn table_kinds_read_as_mitsuba() {
+    let bsdf = |b: &str| one_shape(&format!(r#"<shape type="sphere">{b}</shape>"#)).bsdf;
+    let v = TextureDesc::value;
+    // Every default of roughconductor, in table order: beckmann, alpha 0.1 (both axes),
+    // sample_visible, the `none` material (η 0, k 1), specular_reflectance 1.
+    assert_eq!(
+        bsdf(r#"<bsdf type="roughconductor"/>"#),
+        BsdfDesc::Table {
+            plugin: "roughconductor",
+            params: vec![v(0.0), v(0.1), v(0.1), v(1.0), v(0.0), v(1.0), v(1.0)],
+        }
+    );
+    let b = bsdf(
+        r#"<bsdf type="roughconductor"><string name="distribution" value="ggx"/><float name="alpha_u" value="0.2"/><float name="alpha_v" value="0.4"/><boolean name="sample_visible" value="false"/><string name="material" value="Au"/></bsdf>"#,
+    );
+    assert_eq!(b.param("distribution"), Some(&v(1.0)));
+    assert_eq!(b.param("alpha_u"), Some(&v(0.2)));
+    assert_eq!(b.param("alpha_v"), Some(&v(0.4)));
+    assert_eq!(b.param("sample_visible"), Some(&v(0.0)));
+    let au = |c: [f32; 3]| DVec3::new(c[0] as f64, c[1] as f64, c[2] as f64);
+    assert_eq!(
+        b.param("eta").and_then(|t| t.constant_rgb()),
+        Some(au([0.14303598, 0.37530708, 1.4420453]))
+    );
+    assert_eq!(
+        b.param("k").and_then(|t| t.constant_rgb()),
+        Some(au([3.982997, 2.3855565, 1.6033592]))
+    );
+    // IORs: the defaults (bk7 inside, air outside) and a name.
+    let d = bsdf(r#"<bsdf type="dielectric"><string name="ext_ior" value="water"/></bsdf>"#);
+    assert_eq!(d.param("int_ior"), Some(&v(1.5046f32 as f64)));
+    assert_eq!(d.param("ext_ior"), Some(&v(1.333f32 as f64)));
+    assert_eq!(
+        bsdf(r#"<bsdf type="plastic"/>"#).param("int_ior"),
+        Some(&v(1.49f32 as f64))
+    );
+    assert_eq!(
+        bsdf(r#"<bsdf type="roughplastic"><boolean name="nonlinear" value="true"/></bsdf>"#)
+            .param("nonlinear"),
+        Some(&v(1.0))
+    );
+    let refused = |b: &str, at: &str, parts: &[&str]| {
+        assert_error(
+            &with_sensor(&format!(r#"<shape type="sphere">{b}</shape>"#)),
+            at,
+            parts,
+        )
+    };
+    refused(
+        r#"<bsdf type="roughdielectric"><string name="distribution" value="phong"/></bsdf>"#,
+        "phong",
+        &["invalid distribution 'phong'", "\"beckmann\" or \"ggx\""],
+    );
+    refused(
+        r#"<bsdf type="thindielectric"><string name="int_ior" value="glas"/></bsdf>"#,
+        "glas",
+        &["unknown int_ior 'glas'", "bk7"],
+    );
+    refused(
+        r#"<bsdf type="plastic"><float name="ext_ior" value="-1"/></bsdf>"#,
+        "plastic",
+        &["ext_ior", "must be positive"],
+    );
+    refused(
+        r#"<bsdf type="conductor"><string name="material" value="Au"/><float name="eta" value="2"/></bsdf>"#,
+        "Au",
+        &["either (eta, k) or material"],
+    );
+    refused(
+        r#"<bsdf type="conductor"><string name="material" value="Gold"/></bsdf>"#,
+        "Gold",
+        &["unknown conductor material 'Gold'"],
+    );
+    refused(
+        r#"<bsdf type="roughplastic"><texture type="bitmap" name="alpha"><string name="filename" value="a.png"/></texture></bsdf>"#,
+        "roughplastic",
+        &["must be a number, not a texture"],
+    );
+    refused(
+        r#"<bsdf type="roughconductor"><float name="alpha" value="-0.1"/></bsdf>"#,
+        "roughconductor",
+        &["alpha_u", "finite and >= 0"],
+    );
+    refused(
+        r#"<bsdf type="plastic"><string name="nonlinear" value="yes"/></bsdf>"#,
+        "yes",
+        &["nonlinear"],
+    );
+    // principled: `eta` absent is 0 (then `specular` stands for it), never with `specular`;
+    // `has_spec_trans` is Mitsuba's get_flag of spec_trans, not a scene parameter.
+    let p = bsdf(r#"<bsdf type="principled"/>"#);
+    assert_eq!(p.param("eta"), Some(&v(0.0)));
+    assert_eq!(p.param("specular"), Some(&v(0.5)));
+    assert_eq!(p.param("has_spec_trans"), Some(&v(0.0)));
+    let p = bsdf(
+        r#"<bsdf type="principled"><float name="eta" value="1.33"/><float name="spec_trans" value="0.2"/></bsdf>"#,
+    );
+    assert_eq!(p.param("eta"), Some(&v(1.33)));
+    assert_eq!(p.param("has_spec_trans"), Some(&v(1.0)));
+    let p = bsdf(r#"<bsdf type="principled"><float name="spec_trans" value="0"/></bsdf>"#);
+    assert_eq!(p.param("has_spec_trans"), Some(&v(0.0)));
+    refused(
+        r#"<bsdf type="principled"><float name="eta" value="1.5"/><float name="specular" value="0.3"/></bsdf>"#,
+        "principled",
+        &["either 'eta' or 'specular', not both"],
+    );
+    refused(
+        r#"<bsdf type="principled"><float name="eta" value="-1.5"/></bsdf>"#,
+        "principled",
+        &["eta", "must be positive"],
+    );
+    refused(
+        r#"<bsdf type="principled"><float name="specular" value="1.5"/></bsdf>"#,
+        "principled",
+        &["specular", "[0, 1]"],
+    );
+    refused(
+        r#"<bsdf type="principled"><boolean name="has_spec_trans" value="true"/></bsdf>"#,
+        "has_spec_trans",
+        &["has_spec_trans"],
+    );
+    refused(
+        r#"<bsdf type="principledthin"><float name="diffuse_transmittance_sampling_rate" value="-1"/></bsdf>"#,
+        "principledthin",
+        &["diffuse_transmittance_sampling_rate", "[0, inf]"],
+    );
 }

@@ -10,7 +10,7 @@ use common::{compare_instanced_hits, repo_path, HitChecks};
 use glam::{DVec3, Vec3};
 use penumbra::geometry::Ray;
 use penumbra::render::Job;
-use penumbra::scene::description::{BsdfDesc, EmitterDesc, IntegratorDesc};
+use penumbra::scene::description::{EmitterDesc, IntegratorDesc};
 use penumbra::scene::Scene;
 use std::path::Path;
 
@@ -38,8 +38,8 @@ fn mitsubas_example_scenes_load() {
     // The luminaire's reflectance (a flat 0.78 spectrum, D65-weighted) is the grey Mitsuba
     // stores, and its emission spectrum the colour Mitsuba stores for it (from
     // tests/data/mitsuba_spectrum_values.txt).
-    match &cbox.shapes[0].bsdf {
-        BsdfDesc::Diffuse { reflectance } => assert!(
+    match cbox.shapes[0].bsdf.param("reflectance") {
+        Some(reflectance) => assert!(
             close(
                 reflectance.constant_rgb().unwrap(),
                 DVec3::new(0.77636677, 0.779810011, 0.77602911),

@@ -5,8 +5,40 @@
 //! ideal mirror whose reflectance is exactly `specular_reflectance`.
 
 use super::fresnel::fresnel_conductor;
+use super::plugin::{ParamKind, ParamSpec, PluginCache, TablePlugin};
 use super::{BsdfSample, Spectrum};
+use crate::spectrum::ColorRole;
+use glam::DVec3;
 use glam::{Vec2, Vec3};
+
+/// `eta` and `k`, or the named `material` (Mitsuba's conductors' complex IOR).
+pub const ETA_K: [ParamSpec; 2] = [
+    ParamSpec::new(
+        "eta",
+        ParamKind::ConductorEta,
+        0.0,
+        "η, the real part of the IOR per channel; or `material`, a named preset (default none: η = 0, k = 1)",
+    )
+    .range(0.0, f64::INFINITY),
+    ParamSpec::new(
+        "k",
+        ParamKind::ConductorK,
+        1.0,
+        "k, the imaginary part (absorption)",
+    )
+    .range(0.0, f64::INFINITY),
+];
+
+/// `specular_reflectance`: a factor on the reflection (Mitsuba's default 1).
+pub const SPECULAR_REFLECTANCE: ParamSpec = ParamSpec::new(
+    "specular_reflectance",
+    ParamKind::Color(ColorRole::Reflectance),
+    1.0,
+    "a factor on the reflected light",
+);
+
+/// `conductor`'s parameters (Mitsuba 3.9.1's names and defaults).
+const PARAMS: &[ParamSpec] = &[ETA_K[0], ETA_K[1], SPECULAR_REFLECTANCE];
 
 #[derive(Clone, Debug)]
 pub struct Conductor {
@@ -43,8 +75,29 @@ impl Conductor {
     }
 }
 
+impl TablePlugin for Conductor {
+    const PARAMS: &'static [ParamSpec] = PARAMS;
+
+    fn from_params(v: &[DVec3], _: &mut PluginCache) -> Self {
+        Conductor {
+            eta: v[0].as_vec3(),
+            k: v[1].as_vec3(),
+            specular_reflectance: v[2].as_vec3(),
+        }
+    }
+}
+
 impl super::BsdfModel for Conductor {
     const NAME: &'static str = "conductor";
+
+    fn set_param(&mut self, index: usize, v: Spectrum) {
+        match index {
+            0 => self.eta = v,
+            1 => self.k = v,
+            2 => self.specular_reflectance = v,
+            _ => {}
+        }
+    }
 
     #[inline]
     fn eval(&self, wi: Vec3, wo: Vec3) -> Spectrum {

@@ -9,10 +9,41 @@
 //! transmitted weight carries (η_i / η_t)², as Mitsuba applies in its radiance mode, and the
 //! sample reports η_t / η_i so that the path integrator's Russian roulette can undo it.
 
+use super::conductor::SPECULAR_REFLECTANCE;
 use super::fresnel::{fresnel_dielectric, refract, DielectricFresnel};
+use super::plugin::{ParamKind, ParamSpec, PluginCache, TablePlugin};
 use super::{BsdfSample, Spectrum};
+use crate::spectrum::ColorRole;
 use arrayvec::ArrayVec;
+use glam::DVec3;
 use glam::{Vec2, Vec3};
+
+/// `int_ior` and `ext_ior`, the dielectrics' IORs inside and outside (numbers or names).
+pub const IORS: [ParamSpec; 2] = [
+    ParamSpec::new("int_ior", ParamKind::Ior("bk7"), 1.5046, "the IOR inside"),
+    ParamSpec::new(
+        "ext_ior",
+        ParamKind::Ior("air"),
+        1.000277,
+        "the IOR outside",
+    ),
+];
+
+/// `specular_transmittance`: a factor on the refracted light (Mitsuba's default 1).
+pub const SPECULAR_TRANSMITTANCE: ParamSpec = ParamSpec::new(
+    "specular_transmittance",
+    ParamKind::Color(ColorRole::Reflectance),
+    1.0,
+    "a factor on the refracted light",
+);
+
+/// The parameters of `dielectric` and `thindielectric` (Mitsuba 3.9.1's names and defaults).
+pub const PARAMS: &[ParamSpec] = &[
+    IORS[0],
+    IORS[1],
+    SPECULAR_REFLECTANCE,
+    SPECULAR_TRANSMITTANCE,
+];
 
 #[derive(Clone, Debug)]
 pub struct Dielectric {
@@ -84,8 +115,28 @@ impl Dielectric {
     }
 }
 
+impl TablePlugin for Dielectric {
+    const PARAMS: &'static [ParamSpec] = PARAMS;
+
+    fn from_params(v: &[DVec3], _: &mut PluginCache) -> Self {
+        Dielectric {
+            eta: (v[0].x / v[1].x) as f32,
+            specular_reflectance: v[2].as_vec3(),
+            specular_transmittance: v[3].as_vec3(),
+        }
+    }
+}
+
 impl super::BsdfModel for Dielectric {
     const NAME: &'static str = "dielectric";
+
+    fn set_param(&mut self, index: usize, v: Spectrum) {
+        match index {
+            2 => self.specular_reflectance = v,
+            3 => self.specular_transmittance = v,
+            _ => {}
+        }
+    }
 
     #[inline]
     fn eval(&self, wi: Vec3, wo: Vec3) -> Spectrum {

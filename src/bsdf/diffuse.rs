@@ -2,10 +2,21 @@
 //! shading frame only; wrap it in `twosided` for both sides), sampled with a cosine-weighted
 //! hemisphere (Malley's method).
 
+use super::plugin::{ParamKind, ParamSpec, PluginCache, TablePlugin};
 use super::{BsdfSample, Spectrum};
 use crate::sampling::{square_to_cosine_hemisphere, square_to_cosine_hemisphere_pdf};
+use crate::spectrum::ColorRole;
+use glam::DVec3;
 use glam::{Vec2, Vec3};
 use std::f32::consts::FRAC_1_PI;
+
+/// `diffuse`'s parameters (Mitsuba 3.9.1's names and defaults).
+const PARAMS: &[ParamSpec] = &[ParamSpec::new(
+    "reflectance",
+    ParamKind::Color(ColorRole::Reflectance),
+    0.5,
+    "R, the albedo",
+)];
 
 #[derive(Clone, Debug)]
 pub struct Diffuse {
@@ -44,8 +55,24 @@ impl Diffuse {
     }
 }
 
+impl TablePlugin for Diffuse {
+    const PARAMS: &'static [ParamSpec] = PARAMS;
+
+    fn from_params(v: &[DVec3], _: &mut PluginCache) -> Self {
+        Diffuse {
+            reflectance: v[0].as_vec3(),
+        }
+    }
+}
+
 impl super::BsdfModel for Diffuse {
     const NAME: &'static str = "diffuse";
+
+    fn set_param(&mut self, index: usize, v: Spectrum) {
+        if index == 0 {
+            self.reflectance = v;
+        }
+    }
 
     #[inline]
     fn eval(&self, wi: Vec3, wo: Vec3) -> Spectrum {

@@ -20,6 +20,7 @@
 //! - Without visible sampling: D(m) cos θ_m, sampled in slope space (Walter et al. 2007 §5.2
 //!   eqs. 28 and 35, anisotropic by stretching the slopes).
 
+use super::plugin::{ParamKind, ParamSpec};
 use crate::math::{erfc, erfinv_approx};
 use crate::sampling::square_to_uniform_disk_concentric;
 use glam::{Vec2, Vec3};
@@ -40,6 +41,44 @@ pub struct Microfacet {
     pub sample_visible: bool,
 }
 
+/// `distribution`: the microfacet model's name (Mitsuba's default: Beckmann).
+pub const DISTRIBUTION: ParamSpec = ParamSpec::new(
+    "distribution",
+    ParamKind::Choice(&["beckmann", "ggx"]),
+    0.0,
+    "the microfacet distribution: beckmann or ggx",
+);
+
+/// `alpha_u` and `alpha_v` (or `alpha` for both): the roughness of an anisotropic model,
+/// textures allowed.
+pub const ALPHA_UV: [ParamSpec; 2] = [
+    ParamSpec::new(
+        "alpha_u",
+        ParamKind::Roughness {
+            anisotropic: true,
+            texture: true,
+        },
+        0.1,
+        "roughness along the tangent (`alpha` sets both)",
+    )
+    .range(0.0, f64::INFINITY),
+    ParamSpec::new(
+        "alpha_v",
+        ParamKind::RoughnessV,
+        0.1,
+        "roughness along the bitangent",
+    )
+    .range(0.0, f64::INFINITY),
+];
+
+/// `sample_visible`: sample the visible normals (Mitsuba's default) or all of them.
+pub const SAMPLE_VISIBLE: ParamSpec = ParamSpec::new(
+    "sample_visible",
+    ParamKind::Bool,
+    1.0,
+    "sample the distribution of visible normals",
+);
+
 /// Smallest roughness used: below it, f32 overflows in D (Mitsuba clamps at 1e-4 too).
 const MIN_ALPHA: f32 = 1e-4;
 
@@ -51,6 +90,17 @@ impl Microfacet {
             alpha_v: alpha_v.max(MIN_ALPHA),
             sample_visible,
         }
+    }
+
+    /// The distribution from the values of its table entries ([`DISTRIBUTION`], the two
+    /// roughnesses, [`SAMPLE_VISIBLE`]).
+    pub fn from_params(kind: f64, alpha_u: f64, alpha_v: f64, sample_visible: f64) -> Self {
+        let kind = if kind == 1.0 {
+            MicrofacetType::Ggx
+        } else {
+            MicrofacetType::Beckmann
+        };
+        Microfacet::new(kind, alpha_u as f32, alpha_v as f32, sample_visible != 0.0)
     }
 
     /// Sets the roughness along the tangent (clamped like [`Microfacet::new`]).

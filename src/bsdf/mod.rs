@@ -25,7 +25,9 @@ pub use diffuse::Diffuse;
 pub use microfacet::{Microfacet, MicrofacetType};
 pub use phong::Phong;
 pub use plastic::Plastic;
-pub use plugin::{table_plugin, BsdfModel, ParamKind, ParamSpec, PluginInfo, TablePlugin};
+pub use plugin::{
+    table_plugin, BsdfModel, ParamKind, ParamSpec, PluginCache, PluginInfo, TablePlugin,
+};
 pub use principled::{Principled, PrincipledParams};
 pub use principledthin::{PrincipledThin, PrincipledThinParams};
 pub use roughconductor::RoughConductor;
@@ -82,7 +84,6 @@ impl BsdfSample {
 /// methods, and [`TABLE_PLUGINS`], the plugins the scene reads through their parameter table.
 macro_rules! bsdfs {
     (
-        plain: [$($p:ident($pt:ty)),* $(,)?],
         table: [$($t:ident($tt:ty)),* $(,)?] $(,)?
     ) => {
         /// Variants are stored inline, the largest (roughplastic with its 64-entry albedo
@@ -91,7 +92,6 @@ macro_rules! bsdfs {
         #[allow(clippy::large_enum_variant)]
         #[derive(Clone, Debug)]
         pub enum Bsdf {
-            $($p($pt),)*
             $($t($tt),)*
         }
 
@@ -100,14 +100,13 @@ macro_rules! bsdfs {
             name: <$tt as BsdfModel>::NAME,
             params: <$tt as TablePlugin>::PARAMS,
             check: <$tt as TablePlugin>::check,
-            build: |v| Bsdf::$t(<$tt as TablePlugin>::from_params(v)),
+            build: |v, cache| Bsdf::$t(<$tt as TablePlugin>::from_params(v, cache)),
         }),*];
 
         impl Bsdf {
             /// f(wi, wo) |cos θo|.
             pub fn eval(&self, wi: Vec3, wo: Vec3) -> Spectrum {
                 match self {
-                    $(Bsdf::$p(b) => BsdfModel::eval(b, wi, wo),)*
                     $(Bsdf::$t(b) => BsdfModel::eval(b, wi, wo),)*
                 }
             }
@@ -115,7 +114,6 @@ macro_rules! bsdfs {
             /// Solid-angle density with which `sample` produces `wo`.
             pub fn pdf(&self, wi: Vec3, wo: Vec3) -> f32 {
                 match self {
-                    $(Bsdf::$p(b) => BsdfModel::pdf(b, wi, wo),)*
                     $(Bsdf::$t(b) => BsdfModel::pdf(b, wi, wo),)*
                 }
             }
@@ -123,7 +121,6 @@ macro_rules! bsdfs {
             /// Samples an outgoing direction; `u1` picks a lobe, `u2` the direction.
             pub fn sample(&self, wi: Vec3, u1: f32, u2: Vec2) -> Option<BsdfSample> {
                 match self {
-                    $(Bsdf::$p(b) => BsdfModel::sample(b, wi, u1, u2),)*
                     $(Bsdf::$t(b) => BsdfModel::sample(b, wi, u1, u2),)*
                 }
             }
@@ -133,7 +130,6 @@ macro_rules! bsdfs {
             /// nothing.)
             pub fn has_smooth_lobe(&self, wi: Vec3) -> bool {
                 match self {
-                    $(Bsdf::$p(b) => BsdfModel::has_smooth_lobe(b, wi),)*
                     $(Bsdf::$t(b) => BsdfModel::has_smooth_lobe(b, wi),)*
                 }
             }
@@ -142,7 +138,6 @@ macro_rules! bsdfs {
             /// `eval` does not hold in radiance mode, and albedos count transmission too).
             pub fn is_transmissive(&self) -> bool {
                 match self {
-                    $(Bsdf::$p(b) => BsdfModel::is_transmissive(b),)*
                     $(Bsdf::$t(b) => BsdfModel::is_transmissive(b),)*
                 }
             }
@@ -150,7 +145,6 @@ macro_rules! bsdfs {
             /// The plugin's name in scene files.
             pub fn plugin_name(&self) -> &'static str {
                 match self {
-                    $(Bsdf::$p(_) => <$pt as BsdfModel>::NAME,)*
                     $(Bsdf::$t(_) => <$tt as BsdfModel>::NAME,)*
                 }
             }
@@ -159,18 +153,25 @@ macro_rules! bsdfs {
             #[inline]
             fn set_table_param(&mut self, index: usize, v: Spectrum) {
                 match self {
-                    $(Bsdf::$p(b) => BsdfModel::set_param(b, index, v),)*
                     $(Bsdf::$t(b) => BsdfModel::set_param(b, index, v),)*
+                }
+            }
+
+            /// Called once after the textured parameters of a shading point are set (see
+            /// [`BsdfModel::params_set`]).
+            #[inline]
+            pub fn params_set(&mut self) {
+                match self {
+                    $(Bsdf::$t(b) => BsdfModel::params_set(b),)*
                 }
             }
         }
     };
 }
 
-// The leaf BSDFs. A new one with a parameter table is its file (a `TablePlugin`) and one line
-// under `table`.
+// The leaf BSDFs. A new one is its file (a `TablePlugin`) and one line here.
 bsdfs! {
-    plain: [
+    table: [
         Diffuse(Diffuse),
         Conductor(Conductor),
         RoughConductor(RoughConductor),
@@ -179,11 +180,9 @@ bsdfs! {
         RoughDielectric(RoughDielectric),
         Plastic(Plastic),
         RoughPlastic(RoughPlastic),
+        Phong(Phong),
         Principled(Principled),
         PrincipledThin(PrincipledThin),
-    ],
-    table: [
-        Phong(Phong),
     ],
 }
 
@@ -239,32 +238,8 @@ impl Bsdf {
     /// scene builder only pairs parameters with the BSDFs that take them).
     #[inline]
     pub fn set_param(&mut self, param: BsdfParam, v: Spectrum) {
-        use BsdfParam as P;
-        match (self, param) {
-            (Bsdf::Diffuse(b), P::Reflectance) => b.reflectance = v,
-            (Bsdf::Conductor(b), P::Eta) => b.eta = v,
-            (Bsdf::Conductor(b), P::K) => b.k = v,
-            (Bsdf::Conductor(b), P::SpecularReflectance) => b.specular_reflectance = v,
-            (Bsdf::RoughConductor(b), P::Eta) => b.eta = v,
-            (Bsdf::RoughConductor(b), P::K) => b.k = v,
-            (Bsdf::RoughConductor(b), P::SpecularReflectance) => b.specular_reflectance = v,
-            (Bsdf::RoughConductor(b), P::AlphaU) => b.distribution.set_alpha_u(v.x),
-            (Bsdf::RoughConductor(b), P::AlphaV) => b.distribution.set_alpha_v(v.x),
-            (Bsdf::Dielectric(b), P::SpecularReflectance) => b.specular_reflectance = v,
-            (Bsdf::Dielectric(b), P::SpecularTransmittance) => b.specular_transmittance = v,
-            (Bsdf::ThinDielectric(b), P::SpecularReflectance) => b.specular_reflectance = v,
-            (Bsdf::ThinDielectric(b), P::SpecularTransmittance) => b.specular_transmittance = v,
-            (Bsdf::RoughDielectric(b), P::SpecularReflectance) => b.specular_reflectance = v,
-            (Bsdf::RoughDielectric(b), P::SpecularTransmittance) => b.specular_transmittance = v,
-            (Bsdf::RoughDielectric(b), P::AlphaU) => b.distribution.set_alpha_u(v.x),
-            (Bsdf::RoughDielectric(b), P::AlphaV) => b.distribution.set_alpha_v(v.x),
-            (Bsdf::Plastic(b), P::DiffuseReflectance) => b.diffuse_reflectance = v,
-            (Bsdf::Plastic(b), P::SpecularReflectance) => b.specular_reflectance = v,
-            (Bsdf::RoughPlastic(b), P::DiffuseReflectance) => b.diffuse_reflectance = v,
-            (Bsdf::RoughPlastic(b), P::SpecularReflectance) => b.specular_reflectance = v,
-            (b, P::TableColor(i) | P::TableScalar(i)) => b.set_table_param(i as usize, v),
-            _ => {}
-        }
+        let (BsdfParam::TableColor(i) | BsdfParam::TableScalar(i)) = param;
+        self.set_table_param(i as usize, v);
     }
 }
 
@@ -273,30 +248,6 @@ impl Bsdf {
 /// [`BsdfParam::is_scalar`].
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum BsdfParam {
-    Reflectance,
-    DiffuseReflectance,
-    SpecularReflectance,
-    SpecularTransmittance,
-    Eta,
-    K,
-    AlphaU,
-    AlphaV,
-    // `principled` and `principledthin` (see [`PrincipledParams::set`]).
-    BaseColor,
-    Roughness,
-    Anisotropic,
-    Metallic,
-    SpecTrans,
-    SpecTint,
-    Sheen,
-    SheenTint,
-    Flatness,
-    Clearcoat,
-    ClearcoatGloss,
-    /// `principledthin`'s `diff_trans`.
-    DiffTrans,
-    /// `principledthin`'s `eta` (one value, unlike a conductor's `eta`).
-    SheetEta,
     /// Colour parameter `i` of a table plugin's table ([`TABLE_PLUGINS`]).
     TableColor(u8),
     /// One-value parameter `i` of a table plugin's table.
@@ -306,17 +257,6 @@ pub enum BsdfParam {
 impl BsdfParam {
     /// Whether the parameter is one value (looked up with `eval_1`).
     pub fn is_scalar(self) -> bool {
-        use BsdfParam as P;
-        !matches!(
-            self,
-            P::Reflectance
-                | P::DiffuseReflectance
-                | P::SpecularReflectance
-                | P::SpecularTransmittance
-                | P::Eta
-                | P::K
-                | P::BaseColor
-                | P::TableColor(_)
-        )
+        matches!(self, BsdfParam::TableScalar(_))
     }
 }

@@ -15,7 +15,7 @@
 //! (n + 1) / (2π) cosⁿ α, a direction below the surface rejected; else cosine-weighted. The
 //! pdf is the mixture of both. One-sided, like Mitsuba's: black from below.
 
-use super::plugin::{BsdfModel, ParamKind, ParamSpec, TablePlugin};
+use super::plugin::{BsdfModel, ParamKind, ParamSpec, PluginCache, TablePlugin};
 use super::{BsdfSample, Spectrum};
 use crate::sampling::{square_to_cosine_hemisphere, square_to_cosine_hemisphere_pdf};
 use crate::spectrum::ColorRole;
@@ -60,8 +60,8 @@ pub struct Phong {
 impl TablePlugin for Phong {
     const PARAMS: &'static [ParamSpec] = PARAMS;
 
-    fn from_params(v: &[Spectrum]) -> Self {
-        Phong::new(v[0].x, v[1], v[2])
+    fn from_params(v: &[DVec3], _: &mut PluginCache) -> Self {
+        Phong::new(v[0].x as f32, v[1].as_vec3(), v[2].as_vec3())
     }
 
     /// kd + ks ≤ 1 in every channel (to 1e-6) when both are constants: more would reflect

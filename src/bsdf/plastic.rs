@@ -17,11 +17,56 @@
 //! mean(specular_reflectance) + mean(diffuse_reflectance), as Mitsuba does. eval and pdf
 //! cover the diffuse (smooth) lobe only; the delta lobe is reported by `sample` with `delta` set. One-sided.
 
+use super::conductor::SPECULAR_REFLECTANCE;
 use super::fresnel::{diffuse_fresnel_reflectance_fit, fresnel_dielectric};
+use super::plugin::{ParamKind, ParamSpec, PluginCache, TablePlugin};
 use super::{BsdfSample, Spectrum};
 use crate::sampling::{square_to_cosine_hemisphere, square_to_cosine_hemisphere_pdf};
+use crate::spectrum::ColorRole;
+use glam::DVec3;
 use glam::{Vec2, Vec3};
 use std::f32::consts::FRAC_1_PI;
+
+/// The coating's IORs, `int_ior` (default polypropylene) and `ext_ior`.
+pub const IORS: [ParamSpec; 2] = [
+    ParamSpec::new(
+        "int_ior",
+        ParamKind::Ior("polypropylene"),
+        1.49,
+        "the coating's IOR",
+    ),
+    ParamSpec::new(
+        "ext_ior",
+        ParamKind::Ior("air"),
+        1.000277,
+        "the IOR outside",
+    ),
+];
+
+/// `diffuse_reflectance`: the base's albedo (default 0.5).
+pub const DIFFUSE_REFLECTANCE: ParamSpec = ParamSpec::new(
+    "diffuse_reflectance",
+    ParamKind::Color(ColorRole::Reflectance),
+    0.5,
+    "R, the diffuse base's albedo",
+);
+
+/// `nonlinear`: the internal reflections' geometric series R / (1 − R Fdr_int).
+pub const NONLINEAR: ParamSpec = ParamSpec::new(
+    "nonlinear",
+    ParamKind::Bool,
+    0.0,
+    "account for the colour shift of internal reflections",
+);
+
+/// `plastic`'s parameters (Mitsuba 3.9.1's names and defaults).
+const PARAMS: &[ParamSpec] = &[
+    IORS[0],
+    IORS[1],
+    DIFFUSE_REFLECTANCE,
+    SPECULAR_REFLECTANCE,
+    NONLINEAR,
+];
 
 #[derive(Clone, Debug)]
 pub struct Plastic {
@@ -141,8 +186,29 @@ impl Plastic {
     }
 }
 
+impl TablePlugin for Plastic {
+    const PARAMS: &'static [ParamSpec] = PARAMS;
+
+    fn from_params(v: &[DVec3], _: &mut PluginCache) -> Self {
+        Plastic::new(
+            (v[0].x / v[1].x) as f32,
+            v[2].as_vec3(),
+            v[3].as_vec3(),
+            v[4].x != 0.0,
+        )
+    }
+}
+
 impl super::BsdfModel for Plastic {
     const NAME: &'static str = "plastic";
+
+    fn set_param(&mut self, index: usize, v: Spectrum) {
+        match index {
+            2 => self.diffuse_reflectance = v,
+            3 => self.specular_reflectance = v,
+            _ => {}
+        }
+    }
 
     #[inline]
     fn eval(&self, wi: Vec3, wo: Vec3) -> Spectrum {

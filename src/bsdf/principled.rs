@@ -47,12 +47,126 @@
 
 use super::fresnel::{fresnel_dielectric, reflect, refract};
 use super::microfacet::{Microfacet, MicrofacetType};
+use super::plugin::{ParamKind, ParamSpec, PluginCache, TablePlugin};
 use super::roughdielectric::half_vector;
-use super::{BsdfParam, BsdfSample, Spectrum};
+use super::{BsdfSample, Spectrum};
 use crate::sampling::{square_to_cosine_hemisphere, square_to_cosine_hemisphere_pdf};
 use crate::spectrum::luminance;
+use crate::spectrum::ColorRole;
+use glam::DVec3;
 use glam::{Vec2, Vec3};
 use std::f32::consts::{FRAC_1_PI, PI};
+
+/// `principled`'s parameters (Mitsuba 3.9.1's names and defaults), in the order of
+/// [`PrincipledParams`]'s fields.
+const PARAMS: &[ParamSpec] = &[
+    ParamSpec::new(
+        "base_color",
+        ParamKind::Color(ColorRole::Reflectance),
+        0.5,
+        "the base colour",
+    ),
+    ParamSpec::new(
+        "roughness",
+        ParamKind::Number(ColorRole::Reflectance),
+        0.5,
+        "roughness of the specular and diffuse lobes",
+    ),
+    ParamSpec::new(
+        "anisotropic",
+        ParamKind::Number(ColorRole::Reflectance),
+        0.0,
+        "anisotropy of the specular lobes",
+    ),
+    ParamSpec::new(
+        "has_spec_trans",
+        ParamKind::Given("spec_trans"),
+        0.0,
+        "whether spec_trans is given (a texture or not 0): η = 1 and specular = 0 are nudged",
+    ),
+    ParamSpec::new(
+        "spec_trans",
+        ParamKind::Number(ColorRole::Reflectance),
+        0.0,
+        "weight of the specular transmission",
+    ),
+    ParamSpec::new(
+        "sheen",
+        ParamKind::Number(ColorRole::Reflectance),
+        0.0,
+        "weight of the sheen lobe",
+    ),
+    ParamSpec::new(
+        "sheen_tint",
+        ParamKind::Number(ColorRole::Reflectance),
+        0.0,
+        "how much the sheen takes the base colour",
+    ),
+    ParamSpec::new(
+        "flatness",
+        ParamKind::Number(ColorRole::Reflectance),
+        0.0,
+        "blend of the diffuse lobe towards the subsurface approximation",
+    ),
+    ParamSpec::new(
+        "spec_tint",
+        ParamKind::Number(ColorRole::Reflectance),
+        0.0,
+        "how much the specular reflection takes the base colour",
+    ),
+    ParamSpec::new(
+        "metallic",
+        ParamKind::Number(ColorRole::Reflectance),
+        0.0,
+        "blend towards a metal",
+    ),
+    ParamSpec::new(
+        "clearcoat",
+        ParamKind::Number(ColorRole::Reflectance),
+        0.0,
+        "weight of the clearcoat lobe",
+    ),
+    ParamSpec::new(
+        "clearcoat_gloss",
+        ParamKind::Number(ColorRole::Reflectance),
+        0.0,
+        "glossiness of the clearcoat",
+    ),
+    ParamSpec::new(
+        "eta",
+        ParamKind::Exclusive("specular"),
+        0.0,
+        "the relative IOR (else the one `specular` stands for)",
+    ),
+    ParamSpec::new(
+        "specular",
+        ParamKind::Float,
+        0.5,
+        "normal-incidence reflectance control, as the IOR it stands for",
+    )
+    .range(0.0, 1.0),
+    ParamSpec::new(
+        "diffuse_reflectance_sampling_rate",
+        ParamKind::Float,
+        1.0,
+        "sampling weight of the diffuse lobe",
+    )
+    .range(0.0, f64::INFINITY),
+    ParamSpec::new(
+        "main_specular_sampling_rate",
+        ParamKind::Float,
+        1.0,
+        "sampling weight of the main specular lobes",
+    )
+    .range(0.0, f64::INFINITY),
+    ParamSpec::new(
+        "clearcoat_sampling_rate",
+        ParamKind::Float,
+        1.0,
+        "sampling weight of the clearcoat lobe",
+    )
+    .range(0.0, f64::INFINITY),
+];
 
 /// Mitsuba's `principled` parameters, with its defaults, as plain values at a shading point.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -107,26 +221,6 @@ impl Default for PrincipledParams {
 }
 
 impl PrincipledParams {
-    /// Sets a texture-driven parameter (`v.x` for the one-value ones); others are ignored.
-    #[inline]
-    pub fn set(&mut self, param: BsdfParam, v: Spectrum) {
-        use BsdfParam as P;
-        match param {
-            P::BaseColor => self.base_color = v,
-            P::Roughness => self.roughness = v.x,
-            P::Anisotropic => self.anisotropic = v.x,
-            P::Metallic => self.metallic = v.x,
-            P::SpecTrans => self.spec_trans = v.x,
-            P::SpecTint => self.spec_tint = v.x,
-            P::Sheen => self.sheen = v.x,
-            P::SheenTint => self.sheen_tint = v.x,
-            P::Flatness => self.flatness = v.x,
-            P::Clearcoat => self.clearcoat = v.x,
-            P::ClearcoatGloss => self.clearcoat_gloss = v.x,
-            _ => {}
-        }
-    }
-
     /// The relative IOR η Mitsuba uses: `eta`, or the one `specular` stands for.
     pub fn relative_ior(&self) -> f32 {
         let has_spec_trans = self.has_spec_trans || self.spec_trans != 0.0;
@@ -301,6 +395,8 @@ const CLEARCOAT_G: Microfacet = Microfacet {
 
 #[derive(Clone, Debug)]
 pub struct Principled {
+    /// The parameters it was made from (textured ones are set at each shading point).
+    pub params: PrincipledParams,
     pub base_color: Spectrum,
     pub roughness: f32,
     pub metallic: f32,
@@ -337,6 +433,7 @@ impl Principled {
         let brdf = (1.0 - p.metallic) * (1.0 - p.spec_trans);
         let bsdf = (1.0 - p.metallic) * p.spec_trans;
         Principled {
+            params: p,
             base_color: p.base_color,
             roughness: p.roughness,
             metallic: p.metallic,
@@ -562,8 +659,57 @@ impl Principled {
     }
 }
 
+impl TablePlugin for Principled {
+    const PARAMS: &'static [ParamSpec] = PARAMS;
+
+    fn from_params(v: &[DVec3], _: &mut PluginCache) -> Self {
+        Principled::new(PrincipledParams {
+            base_color: v[0].as_vec3(),
+            roughness: v[1].x as f32,
+            anisotropic: v[2].x as f32,
+            has_spec_trans: v[3].x != 0.0,
+            spec_trans: v[4].x as f32,
+            sheen: v[5].x as f32,
+            sheen_tint: v[6].x as f32,
+            flatness: v[7].x as f32,
+            spec_tint: v[8].x as f32,
+            metallic: v[9].x as f32,
+            clearcoat: v[10].x as f32,
+            clearcoat_gloss: v[11].x as f32,
+            eta: (v[12].x > 0.0).then_some(v[12].x as f32),
+            specular: v[13].x as f32,
+            diffuse_reflectance_sampling_rate: v[14].x as f32,
+            main_specular_sampling_rate: v[15].x as f32,
+            clearcoat_sampling_rate: v[16].x as f32,
+        })
+    }
+}
+
 impl super::BsdfModel for Principled {
     const NAME: &'static str = "principled";
+
+    fn set_param(&mut self, index: usize, v: Spectrum) {
+        match index {
+            0 => self.params.base_color = v,
+            1 => self.params.roughness = v.x,
+            2 => self.params.anisotropic = v.x,
+            4 => self.params.spec_trans = v.x,
+            5 => self.params.sheen = v.x,
+            6 => self.params.sheen_tint = v.x,
+            7 => self.params.flatness = v.x,
+            8 => self.params.spec_tint = v.x,
+            9 => self.params.metallic = v.x,
+            10 => self.params.clearcoat = v.x,
+            11 => self.params.clearcoat_gloss = v.x,
+            _ => {}
+        }
+    }
+
+    /// The lobe weights, roughness and η depend on the parameters: made anew, as Mitsuba
+    /// evaluates them at each shading point.
+    fn params_set(&mut self) {
+        *self = Principled::new(self.params);
+    }
 
     #[inline]
     fn eval(&self, wi: Vec3, wo: Vec3) -> Spectrum {

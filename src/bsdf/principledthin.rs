@@ -26,14 +26,110 @@
 
 use super::fresnel::{fresnel_dielectric, reflect};
 use super::microfacet::Microfacet;
+use super::plugin::{ParamKind, ParamSpec, PluginCache, TablePlugin};
 use super::principled::{
     disney_diffuse, disney_ggx, facet_sides_agree, schlick_r0, schlick_weight, schlick_weight_at,
     sheen_color, tint_color,
 };
-use super::{BsdfParam, BsdfSample, Spectrum};
+use super::{BsdfSample, Spectrum};
 use crate::sampling::{square_to_cosine_hemisphere, square_to_cosine_hemisphere_pdf};
+use crate::spectrum::ColorRole;
+use glam::DVec3;
 use glam::{Vec2, Vec3};
 use std::f32::consts::FRAC_1_PI;
+
+/// `principledthin`'s parameters (Mitsuba 3.9.1's names and defaults), in the order of
+/// [`PrincipledThinParams`]'s fields.
+const PARAMS: &[ParamSpec] = &[
+    ParamSpec::new(
+        "base_color",
+        ParamKind::Color(ColorRole::Reflectance),
+        0.5,
+        "the base colour",
+    ),
+    ParamSpec::new(
+        "roughness",
+        ParamKind::Number(ColorRole::Reflectance),
+        0.5,
+        "roughness of the specular and diffuse lobes",
+    ),
+    ParamSpec::new(
+        "anisotropic",
+        ParamKind::Number(ColorRole::Reflectance),
+        0.0,
+        "anisotropy of the specular lobes",
+    ),
+    ParamSpec::new(
+        "spec_trans",
+        ParamKind::Number(ColorRole::Reflectance),
+        0.0,
+        "weight of the specular transmission",
+    ),
+    ParamSpec::new(
+        "sheen",
+        ParamKind::Number(ColorRole::Reflectance),
+        0.0,
+        "weight of the sheen lobe",
+    ),
+    ParamSpec::new(
+        "sheen_tint",
+        ParamKind::Number(ColorRole::Reflectance),
+        0.0,
+        "how much the sheen takes the base colour",
+    ),
+    ParamSpec::new(
+        "flatness",
+        ParamKind::Number(ColorRole::Reflectance),
+        0.0,
+        "blend of the diffuse lobe towards the subsurface approximation",
+    ),
+    ParamSpec::new(
+        "spec_tint",
+        ParamKind::Number(ColorRole::Reflectance),
+        0.0,
+        "how much the specular reflection takes the base colour",
+    ),
+    ParamSpec::new(
+        "eta",
+        ParamKind::Number(ColorRole::Unbounded),
+        1.5,
+        "the sheet's relative IOR",
+    ),
+    ParamSpec::new(
+        "diff_trans",
+        ParamKind::Number(ColorRole::Reflectance),
+        0.0,
+        "diffuse transmission, in [0, 2] (the model uses half)",
+    ),
+    ParamSpec::new(
+        "specular_reflectance_sampling_rate",
+        ParamKind::Float,
+        1.0,
+        "sampling weight of the specular reflection",
+    )
+    .range(0.0, f64::INFINITY),
+    ParamSpec::new(
+        "specular_transmittance_sampling_rate",
+        ParamKind::Float,
+        1.0,
+        "sampling weight of the specular transmission",
+    )
+    .range(0.0, f64::INFINITY),
+    ParamSpec::new(
+        "diffuse_reflectance_sampling_rate",
+        ParamKind::Float,
+        1.0,
+        "sampling weight of the diffuse reflection",
+    )
+    .range(0.0, f64::INFINITY),
+    ParamSpec::new(
+        "diffuse_transmittance_sampling_rate",
+        ParamKind::Float,
+        1.0,
+        "sampling weight of the diffuse transmission",
+    )
+    .range(0.0, f64::INFINITY),
+];
 
 /// Mitsuba's `principledthin` parameters, with its defaults, as plain values at a shading
 /// point.
@@ -55,27 +151,6 @@ pub struct PrincipledThinParams {
     pub specular_transmittance_sampling_rate: f32,
     pub diffuse_reflectance_sampling_rate: f32,
     pub diffuse_transmittance_sampling_rate: f32,
-}
-
-impl PrincipledThinParams {
-    /// Sets a texture-driven parameter (`v.x` for the one-value ones); others are ignored.
-    #[inline]
-    pub fn set(&mut self, param: BsdfParam, v: Spectrum) {
-        use BsdfParam as P;
-        match param {
-            P::BaseColor => self.base_color = v,
-            P::Roughness => self.roughness = v.x,
-            P::Anisotropic => self.anisotropic = v.x,
-            P::SpecTrans => self.spec_trans = v.x,
-            P::DiffTrans => self.diff_trans = v.x,
-            P::SheetEta => self.eta = v.x,
-            P::SpecTint => self.spec_tint = v.x,
-            P::Sheen => self.sheen = v.x,
-            P::SheenTint => self.sheen_tint = v.x,
-            P::Flatness => self.flatness = v.x,
-            _ => {}
-        }
-    }
 }
 
 impl Default for PrincipledThinParams {
@@ -101,6 +176,8 @@ impl Default for PrincipledThinParams {
 
 #[derive(Clone, Debug)]
 pub struct PrincipledThin {
+    /// The parameters it was made from (textured ones are set at each shading point).
+    pub params: PrincipledThinParams,
     pub base_color: Spectrum,
     pub roughness: f32,
     pub spec_trans: f32,
@@ -137,6 +214,7 @@ impl PrincipledThin {
             [0.0; 4]
         };
         PrincipledThin {
+            params: p,
             base_color: p.base_color,
             roughness: p.roughness,
             spec_trans: s,
@@ -278,8 +356,53 @@ impl PrincipledThin {
     }
 }
 
+impl TablePlugin for PrincipledThin {
+    const PARAMS: &'static [ParamSpec] = PARAMS;
+
+    fn from_params(v: &[DVec3], _: &mut PluginCache) -> Self {
+        PrincipledThin::new(PrincipledThinParams {
+            base_color: v[0].as_vec3(),
+            roughness: v[1].x as f32,
+            anisotropic: v[2].x as f32,
+            spec_trans: v[3].x as f32,
+            sheen: v[4].x as f32,
+            sheen_tint: v[5].x as f32,
+            flatness: v[6].x as f32,
+            spec_tint: v[7].x as f32,
+            eta: v[8].x as f32,
+            diff_trans: v[9].x as f32,
+            specular_reflectance_sampling_rate: v[10].x as f32,
+            specular_transmittance_sampling_rate: v[11].x as f32,
+            diffuse_reflectance_sampling_rate: v[12].x as f32,
+            diffuse_transmittance_sampling_rate: v[13].x as f32,
+        })
+    }
+}
+
 impl super::BsdfModel for PrincipledThin {
     const NAME: &'static str = "principledthin";
+
+    fn set_param(&mut self, index: usize, v: Spectrum) {
+        match index {
+            0 => self.params.base_color = v,
+            1 => self.params.roughness = v.x,
+            2 => self.params.anisotropic = v.x,
+            3 => self.params.spec_trans = v.x,
+            4 => self.params.sheen = v.x,
+            5 => self.params.sheen_tint = v.x,
+            6 => self.params.flatness = v.x,
+            7 => self.params.spec_tint = v.x,
+            8 => self.params.eta = v.x,
+            9 => self.params.diff_trans = v.x,
+            _ => {}
+        }
+    }
+
+    /// The lobe weights, roughness and η depend on the parameters: made anew, as Mitsuba
+    /// evaluates them at each shading point.
+    fn params_set(&mut self) {
+        *self = PrincipledThin::new(self.params);
+    }
 
     #[inline]
     fn eval(&self, wi: Vec3, wo: Vec3) -> Spectrum {

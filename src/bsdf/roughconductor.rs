@@ -6,10 +6,25 @@
 //! normals (default) or by D(m) cos θm, with the reflection Jacobian 1 / (4 |wo·m|)
 //! (Walter et al. eq. 14). One-sided.
 
+use super::conductor::{ETA_K, SPECULAR_REFLECTANCE};
 use super::fresnel::{fresnel_conductor, reflect};
 use super::microfacet::Microfacet;
+use super::microfacet::{ALPHA_UV, DISTRIBUTION, SAMPLE_VISIBLE};
+use super::plugin::{ParamSpec, PluginCache, TablePlugin};
 use super::{BsdfSample, Spectrum};
+use glam::DVec3;
 use glam::{Vec2, Vec3};
+
+/// `roughconductor`'s parameters (Mitsuba 3.9.1's names and defaults).
+const PARAMS: &[ParamSpec] = &[
+    DISTRIBUTION,
+    ALPHA_UV[0],
+    ALPHA_UV[1],
+    SAMPLE_VISIBLE,
+    ETA_K[0],
+    ETA_K[1],
+    SPECULAR_REFLECTANCE,
+];
 
 #[derive(Clone, Debug)]
 pub struct RoughConductor {
@@ -67,8 +82,32 @@ impl RoughConductor {
     }
 }
 
+impl TablePlugin for RoughConductor {
+    const PARAMS: &'static [ParamSpec] = PARAMS;
+
+    fn from_params(v: &[DVec3], _: &mut PluginCache) -> Self {
+        RoughConductor {
+            distribution: Microfacet::from_params(v[0].x, v[1].x, v[2].x, v[3].x),
+            eta: v[4].as_vec3(),
+            k: v[5].as_vec3(),
+            specular_reflectance: v[6].as_vec3(),
+        }
+    }
+}
+
 impl super::BsdfModel for RoughConductor {
     const NAME: &'static str = "roughconductor";
+
+    fn set_param(&mut self, index: usize, v: Spectrum) {
+        match index {
+            1 => self.distribution.set_alpha_u(v.x),
+            2 => self.distribution.set_alpha_v(v.x),
+            4 => self.eta = v,
+            5 => self.k = v,
+            6 => self.specular_reflectance = v,
+            _ => {}
+        }
+    }
 
     #[inline]
     fn eval(&self, wi: Vec3, wo: Vec3) -> Spectrum {

@@ -10,10 +10,27 @@
 //! 1.2 − 0.2 √|cos θi| of §5.3 when `sample_visible` is off) and picks reflection with
 //! probability F(wi·m).
 
+use super::conductor::SPECULAR_REFLECTANCE;
+use super::dielectric::{IORS, SPECULAR_TRANSMITTANCE};
 use super::fresnel::{fresnel_dielectric, reflect, refract};
 use super::microfacet::Microfacet;
+use super::microfacet::{ALPHA_UV, DISTRIBUTION, SAMPLE_VISIBLE};
+use super::plugin::{ParamSpec, PluginCache, TablePlugin};
 use super::{BsdfSample, Spectrum};
+use glam::DVec3;
 use glam::{Vec2, Vec3};
+
+/// `roughdielectric`'s parameters (Mitsuba 3.9.1's names and defaults).
+const PARAMS: &[ParamSpec] = &[
+    DISTRIBUTION,
+    ALPHA_UV[0],
+    ALPHA_UV[1],
+    SAMPLE_VISIBLE,
+    IORS[0],
+    IORS[1],
+    SPECULAR_REFLECTANCE,
+    SPECULAR_TRANSMITTANCE,
+];
 
 #[derive(Clone, Debug)]
 pub struct RoughDielectric {
@@ -140,8 +157,31 @@ impl RoughDielectric {
     }
 }
 
+impl TablePlugin for RoughDielectric {
+    const PARAMS: &'static [ParamSpec] = PARAMS;
+
+    fn from_params(v: &[DVec3], _: &mut PluginCache) -> Self {
+        RoughDielectric {
+            distribution: Microfacet::from_params(v[0].x, v[1].x, v[2].x, v[3].x),
+            eta: (v[4].x / v[5].x) as f32,
+            specular_reflectance: v[6].as_vec3(),
+            specular_transmittance: v[7].as_vec3(),
+        }
+    }
+}
+
 impl super::BsdfModel for RoughDielectric {
     const NAME: &'static str = "roughdielectric";
+
+    fn set_param(&mut self, index: usize, v: Spectrum) {
+        match index {
+            1 => self.distribution.set_alpha_u(v.x),
+            2 => self.distribution.set_alpha_v(v.x),
+            6 => self.specular_reflectance = v,
+            7 => self.specular_transmittance = v,
+            _ => {}
+        }
+    }
 
     #[inline]
     fn eval(&self, wi: Vec3, wo: Vec3) -> Spectrum {

@@ -18,17 +18,44 @@
 //! T(cos θi)(1 − w_s) (w_s as in `plastic`); both lobes are smooth, so eval and pdf cover
 //! everything. One-sided.
 
+use super::conductor::SPECULAR_REFLECTANCE;
 use super::fresnel::{fresnel_dielectric, reflect, refract};
 use super::microfacet::Microfacet;
+use super::microfacet::{DISTRIBUTION, SAMPLE_VISIBLE};
 use super::plastic::{
     diffuse_with_internal_scattering, specular_lobe_probability, specular_sampling_weight,
 };
+use super::plastic::{DIFFUSE_REFLECTANCE, IORS, NONLINEAR};
+use super::plugin::{ParamKind, ParamSpec, PluginCache, TablePlugin};
 use super::{BsdfSample, Spectrum};
 use crate::math::gauss_legendre;
 use crate::sampling::{square_to_cosine_hemisphere, square_to_cosine_hemisphere_pdf};
+use glam::DVec3;
 use glam::{Vec2, Vec3};
 use rayon::prelude::*;
 use std::f32::consts::FRAC_1_PI;
+
+/// `roughplastic`'s parameters (Mitsuba 3.9.1's names and defaults); its roughness is one
+/// number, from which the coating's tables are computed.
+const PARAMS: &[ParamSpec] = &[
+    DISTRIBUTION,
+    ParamSpec::new(
+        "alpha",
+        ParamKind::Roughness {
+            anisotropic: false,
+            texture: false,
+        },
+        0.1,
+        "the coating's roughness (a number)",
+    )
+    .range(0.0, f64::INFINITY),
+    SAMPLE_VISIBLE,
+    IORS[0],
+    IORS[1],
+    DIFFUSE_REFLECTANCE,
+    SPECULAR_REFLECTANCE,
+    NONLINEAR,
+];
 
 /// Cosines at which the coating's transmittance is tabulated.
 const TABLE_SIZE: usize = 64;
@@ -271,8 +298,46 @@ impl RoughPlastic {
     }
 }
 
+/// The coating tables computed so far for a scene, by distribution and η.
+#[derive(Default)]
+struct Coatings(Vec<((Microfacet, f32), CoatingTables)>);
+
+impl TablePlugin for RoughPlastic {
+    const PARAMS: &'static [ParamSpec] = PARAMS;
+
+    fn from_params(v: &[DVec3], cache: &mut PluginCache) -> Self {
+        let distribution = Microfacet::from_params(v[0].x, v[1].x, v[1].x, v[2].x);
+        let eta = (v[3].x / v[4].x) as f32;
+        let coatings = &mut cache.get::<Coatings>().0;
+        let tables = match coatings.iter().find(|(k, _)| *k == (distribution, eta)) {
+            Some((_, t)) => t.clone(),
+            None => {
+                let t = CoatingTables::new(&distribution, eta);
+                coatings.push(((distribution, eta), t.clone()));
+                t
+            }
+        };
+        RoughPlastic::with_tables(
+            distribution,
+            eta,
+            v[5].as_vec3(),
+            v[6].as_vec3(),
+            v[7].x != 0.0,
+            &tables,
+        )
+    }
+}
+
 impl super::BsdfModel for RoughPlastic {
     const NAME: &'static str = "roughplastic";
+
+    fn set_param(&mut self, index: usize, v: Spectrum) {
+        match index {
+            5 => self.diffuse_reflectance = v,
+            6 => self.specular_reflectance = v,
+            _ => {}
+        }
+    }
 
     #[inline]
     fn eval(&self, wi: Vec3, wo: Vec3) -> Spectrum {

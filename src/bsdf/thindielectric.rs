@@ -6,8 +6,10 @@
 //! both sides is the same, so no radiance scaling (η = 1 along the path).
 
 use super::fresnel::fresnel_dielectric;
+use super::plugin::{ParamSpec, PluginCache, TablePlugin};
 use super::{BsdfSample, Spectrum};
 use arrayvec::ArrayVec;
+use glam::DVec3;
 use glam::{Vec2, Vec3};
 
 #[derive(Clone, Debug)]
@@ -96,8 +98,29 @@ impl ThinDielectric {
     }
 }
 
+impl TablePlugin for ThinDielectric {
+    /// `dielectric`'s parameters.
+    const PARAMS: &'static [ParamSpec] = super::dielectric::PARAMS;
+
+    fn from_params(v: &[DVec3], _: &mut PluginCache) -> Self {
+        ThinDielectric {
+            eta: (v[0].x / v[1].x) as f32,
+            specular_reflectance: v[2].as_vec3(),
+            specular_transmittance: v[3].as_vec3(),
+        }
+    }
+}
+
 impl super::BsdfModel for ThinDielectric {
     const NAME: &'static str = "thindielectric";
+
+    fn set_param(&mut self, index: usize, v: Spectrum) {
+        match index {
+            2 => self.specular_reflectance = v,
+            3 => self.specular_transmittance = v,
+            _ => {}
+        }
+    }
 
     #[inline]
     fn eval(&self, wi: Vec3, wo: Vec3) -> Spectrum {

@@ -28,9 +28,7 @@ pub mod twosided;
 
 pub use shading::{Node, ShadingBsdf, MAX_NODES};
 
-use crate::bsdf::{
-    Bsdf, BsdfParam, Principled, PrincipledParams, PrincipledThin, PrincipledThinParams,
-};
+use crate::bsdf::{Bsdf, BsdfParam};
 use crate::geometry::Frame;
 use crate::texture::{Texture, TextureContext};
 use glam::Vec3;
@@ -43,18 +41,6 @@ pub enum Material {
     /// each shading point.
     Leaf {
         template: Bsdf,
-        textures: Vec<(BsdfParam, Texture)>,
-    },
-    /// Mitsuba's `principled` with textured parameters: its derived quantities (lobe weights,
-    /// roughness, η) depend on them, so the BSDF is made anew from `params` at each shading
-    /// point, as Mitsuba evaluates it. (Without textures it is a [`Material::Leaf`].)
-    Principled {
-        params: PrincipledParams,
-        textures: Vec<(BsdfParam, Texture)>,
-    },
-    /// Mitsuba's `principledthin` with textured parameters.
-    PrincipledThin {
-        params: PrincipledThinParams,
         textures: Vec<(BsdfParam, Texture)>,
     },
     /// Mitsuba's `twosided`: indices of the front and back materials (the same one twice when
@@ -96,6 +82,19 @@ pub struct ShadingContext<'a> {
 }
 
 impl Material {
+    /// The plugin's name in scene files (a leaf's BSDF, or the adapter).
+    pub fn plugin_name(&self) -> &'static str {
+        match self {
+            Material::Leaf { template, .. } => template.plugin_name(),
+            Material::TwoSided { .. } => "twosided",
+            Material::Mask { .. } => "mask",
+            Material::Blend { .. } => "blendbsdf",
+            Material::NormalMap { .. } => "normalmap",
+            Material::BumpMap { .. } => "bumpmap",
+            Material::Null => "null",
+        }
+    }
+
     /// The number of [`ShadingBsdf`] nodes the material at `root` of `materials` becomes, or
     /// `None` if it refers to a material that does not exist or nests deeper than the tree
     /// can hold (the scene builder refuses such a scene).
@@ -105,10 +104,7 @@ impl Material {
                 return None;
             }
             let children: &[u32] = match m.get(i as usize)? {
-                Material::Leaf { .. }
-                | Material::Principled { .. }
-                | Material::PrincipledThin { .. }
-                | Material::Null => &[],
+                Material::Leaf { .. } | Material::Null => &[],
                 Material::TwoSided { front, back } => {
                     let f = count(m, *front, depth + 1)?;
                     let b = if back == front {
@@ -143,9 +139,7 @@ impl Material {
             let constant = |t: &[(BsdfParam, Texture)]| t.iter().all(|(_, t)| t.is_constant());
             match m.get(i as usize) {
                 None => false,
-                Some(Material::Leaf { textures, .. })
-                | Some(Material::Principled { textures, .. })
-                | Some(Material::PrincipledThin { textures, .. }) => constant(textures),
+                Some(Material::Leaf { textures, .. }) => constant(textures),
                 Some(Material::Null) => true,
                 Some(Material::TwoSided { front, back }) => {
                     uniform(m, *front, depth + 1) && uniform(m, *back, depth + 1)
@@ -205,21 +199,10 @@ fn push(materials: &[Material], i: u32, ctx: &ShadingContext, out: &mut ShadingB
             for (param, tex) in textures {
                 b.set_param(*param, lookup(*param, tex, ctx));
             }
+            if !textures.is_empty() {
+                b.params_set();
+            }
             out.push(Node::Leaf(b))
-        }
-        Material::Principled { params, textures } => {
-            let mut p = *params;
-            for (param, tex) in textures {
-                p.set(*param, lookup(*param, tex, ctx));
-            }
-            out.push(Node::Leaf(Bsdf::Principled(Principled::new(p))))
-        }
-        Material::PrincipledThin { params, textures } => {
-            let mut p = *params;
-            for (param, tex) in textures {
-                p.set(*param, lookup(*param, tex, ctx));
-            }
-            out.push(Node::Leaf(Bsdf::PrincipledThin(PrincipledThin::new(p))))
         }
         Material::Null => out.push(Node::Null),
         Material::TwoSided { front, back } => {

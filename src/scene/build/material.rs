@@ -4,20 +4,13 @@
 //! other materials by index. Equal BSDF descriptions (a `<bsdf id>` used by many shapes)
 //! become one material, and a bitmap used by several textures is loaded once.
 
-use crate::bsdf::roughplastic::CoatingTables;
-use crate::bsdf::{
-    Bsdf, BsdfParam, Conductor, Dielectric, Diffuse, Microfacet, MicrofacetType, Plastic,
-    Principled, PrincipledParams, PrincipledThin, PrincipledThinParams, RoughConductor,
-    RoughDielectric, RoughPlastic, ThinDielectric,
-};
+use crate::bsdf::{BsdfParam, PluginCache};
 use crate::error::{Error, Result};
 use crate::material::{Material, MAX_NODES};
-use crate::scene::description::{
-    BsdfDesc, MicrofacetDesc, MicrofacetKind, PrincipledDesc, TextureDesc, VolumeDesc,
-};
+use crate::scene::description::{BsdfDesc, TextureDesc, VolumeDesc};
 use crate::texture::bitmap::{BitmapTexture, Format, TexImage};
 use crate::texture::{Checkerboard, MeshAttributeTexture, Texture, UvTransform, VolumeTexture};
-use glam::{DMat4, Vec3};
+use glam::{DMat4, DVec3, Vec3};
 use std::path::PathBuf;
 use std::sync::Arc;
 
@@ -30,8 +23,9 @@ pub struct MaterialBuilder {
     /// Bitmaps already loaded, by file, `raw` and storage format: an image shared by
     /// several textures (or emitters) is read and stored once.
     images: Vec<((PathBuf, bool, Format), Arc<TexImage>)>,
-    /// roughplastic's coating tables, by distribution and η (they take ~0.1 s each).
-    coatings: Vec<((Microfacet, f32), CoatingTables)>,
+    /// What the BSDF plugins keep across the scene's BSDFs (roughplastic's coating tables,
+    /// ~0.1 s each).
+    plugins: PluginCache,
     /// World space to the space the scene is built in (volume textures are looked up there).
     pub shift: DMat4,
 }
@@ -93,7 +87,6 @@ impl MaterialBuilder {
                 use_shadowing_function: *use_shadowing_function,
             },
             BsdfDesc::Null => Material::Null,
-            BsdfDesc::Principled(p) => self.principled(p)?,
             leaf => self.leaf(leaf)?,
         })
     }
@@ -122,134 +115,6 @@ impl MaterialBuilder {
         };
         use BsdfParam as P;
         let template = match d {
-            BsdfDesc::Diffuse { reflectance } => Bsdf::Diffuse(Diffuse {
-                reflectance: param(self, P::Reflectance, reflectance)?,
-            }),
-            BsdfDesc::Conductor {
-                eta,
-                k,
-                specular_reflectance,
-            } => Bsdf::Conductor(Conductor {
-                eta: param(self, P::Eta, eta)?,
-                k: param(self, P::K, k)?,
-                specular_reflectance: param(self, P::SpecularReflectance, specular_reflectance)?,
-            }),
-            BsdfDesc::RoughConductor {
-                distribution,
-                eta,
-                k,
-                specular_reflectance,
-            } => {
-                let au = param(self, P::AlphaU, &distribution.alpha_u)?.x;
-                let av = param(self, P::AlphaV, &distribution.alpha_v)?.x;
-                Bsdf::RoughConductor(RoughConductor {
-                    distribution: microfacet(distribution, au, av),
-                    eta: param(self, P::Eta, eta)?,
-                    k: param(self, P::K, k)?,
-                    specular_reflectance: param(
-                        self,
-                        P::SpecularReflectance,
-                        specular_reflectance,
-                    )?,
-                })
-            }
-            BsdfDesc::Dielectric {
-                int_ior,
-                ext_ior,
-                specular_reflectance,
-                specular_transmittance,
-            } => Bsdf::Dielectric(Dielectric {
-                eta: (int_ior / ext_ior) as f32,
-                specular_reflectance: param(self, P::SpecularReflectance, specular_reflectance)?,
-                specular_transmittance: param(
-                    self,
-                    P::SpecularTransmittance,
-                    specular_transmittance,
-                )?,
-            }),
-            BsdfDesc::ThinDielectric {
-                int_ior,
-                ext_ior,
-                specular_reflectance,
-                specular_transmittance,
-            } => Bsdf::ThinDielectric(ThinDielectric {
-                eta: (int_ior / ext_ior) as f32,
-                specular_reflectance: param(self, P::SpecularReflectance, specular_reflectance)?,
-                specular_transmittance: param(
-                    self,
-                    P::SpecularTransmittance,
-                    specular_transmittance,
-                )?,
-            }),
-            BsdfDesc::RoughDielectric {
-                distribution,
-                int_ior,
-                ext_ior,
-                specular_reflectance,
-                specular_transmittance,
-            } => {
-                let au = param(self, P::AlphaU, &distribution.alpha_u)?.x;
-                let av = param(self, P::AlphaV, &distribution.alpha_v)?.x;
-                Bsdf::RoughDielectric(RoughDielectric {
-                    distribution: microfacet(distribution, au, av),
-                    eta: (int_ior / ext_ior) as f32,
-                    specular_reflectance: param(
-                        self,
-                        P::SpecularReflectance,
-                        specular_reflectance,
-                    )?,
-                    specular_transmittance: param(
-                        self,
-                        P::SpecularTransmittance,
-                        specular_transmittance,
-                    )?,
-                })
-            }
-            BsdfDesc::Plastic {
-                int_ior,
-                ext_ior,
-                diffuse_reflectance,
-                specular_reflectance,
-                nonlinear,
-            } => Bsdf::Plastic(Plastic::new(
-                (int_ior / ext_ior) as f32,
-                param(self, P::DiffuseReflectance, diffuse_reflectance)?,
-                param(self, P::SpecularReflectance, specular_reflectance)?,
-                *nonlinear,
-            )),
-            BsdfDesc::RoughPlastic {
-                distribution,
-                int_ior,
-                ext_ior,
-                diffuse_reflectance,
-                specular_reflectance,
-                nonlinear,
-            } => {
-                // The description guarantees a numeric roughness.
-                let a = distribution.alpha_u.constant_scalar().unwrap_or(0.1) as f32;
-                let (distribution, eta) =
-                    (microfacet(distribution, a, a), (int_ior / ext_ior) as f32);
-                let tables = match self
-                    .coatings
-                    .iter()
-                    .find(|(k, _)| *k == (distribution, eta))
-                {
-                    Some((_, t)) => t.clone(),
-                    None => {
-                        let t = CoatingTables::new(&distribution, eta);
-                        self.coatings.push(((distribution, eta), t.clone()));
-                        t
-                    }
-                };
-                Bsdf::RoughPlastic(RoughPlastic::with_tables(
-                    distribution,
-                    eta,
-                    param(self, P::DiffuseReflectance, diffuse_reflectance)?,
-                    param(self, P::SpecularReflectance, specular_reflectance)?,
-                    *nonlinear,
-                    &tables,
-                ))
-            }
             BsdfDesc::Table { plugin, params } => {
                 let info = crate::bsdf::table_plugin(plugin)
                     .ok_or_else(|| Error::Invalid(format!("no BSDF plugin named '{plugin}'")))?;
@@ -261,76 +126,18 @@ impl MaterialBuilder {
                     } else {
                         P::TableColor(i)
                     };
-                    values.push(param(self, slot, t)?);
+                    values.push(if spec.kind.texture_allowed() {
+                        param(self, slot, t)?.as_dvec3()
+                    } else {
+                        // Plain numbers, flags, choices and IORs exactly as given.
+                        DVec3::splat(t.constant_scalar().unwrap_or(spec.default))
+                    });
                 }
-                (info.build)(&values)
+                (info.build)(&values, &mut self.plugins)
             }
             _ => unreachable!("adapters are built by MaterialBuilder::build"),
         };
         Ok(Material::Leaf { template, textures })
-    }
-
-    /// `principled` / `principledthin`: a leaf when every parameter is constant, else the
-    /// parameters with their textures (the BSDF is made per shading point).
-    fn principled(&mut self, d: &PrincipledDesc) -> Result<Material> {
-        let mut textures = Vec::new();
-        let mut constants = Vec::new();
-        for (param, t) in &d.params {
-            let tex = self.texture(t)?;
-            match &tex {
-                Texture::Constant { rgb, scalar } => constants.push((
-                    *param,
-                    if param.is_scalar() {
-                        Vec3::splat(*scalar)
-                    } else {
-                        *rgb
-                    },
-                )),
-                _ => textures.push((*param, tex)),
-            }
-        }
-        let rate = |i: usize| d.sampling_rates.get(i).copied().unwrap_or(1.0) as f32;
-        if d.thin {
-            let mut params = PrincipledThinParams {
-                specular_reflectance_sampling_rate: rate(0),
-                specular_transmittance_sampling_rate: rate(1),
-                diffuse_reflectance_sampling_rate: rate(2),
-                diffuse_transmittance_sampling_rate: rate(3),
-                ..Default::default()
-            };
-            for (param, v) in constants {
-                params.set(param, v);
-            }
-            Ok(if textures.is_empty() {
-                Material::Leaf {
-                    template: Bsdf::PrincipledThin(PrincipledThin::new(params)),
-                    textures,
-                }
-            } else {
-                Material::PrincipledThin { params, textures }
-            })
-        } else {
-            let mut params = PrincipledParams {
-                has_spec_trans: d.has_spec_trans,
-                specular: d.specular as f32,
-                eta: d.eta.map(|e| e as f32),
-                diffuse_reflectance_sampling_rate: rate(0),
-                main_specular_sampling_rate: rate(1),
-                clearcoat_sampling_rate: rate(2),
-                ..Default::default()
-            };
-            for (param, v) in constants {
-                params.set(param, v);
-            }
-            Ok(if textures.is_empty() {
-                Material::Leaf {
-                    template: Bsdf::Principled(Principled::new(params)),
-                    textures,
-                }
-            } else {
-                Material::Principled { params, textures }
-            })
-        }
     }
 
     /// A texture from its description.
@@ -384,17 +191,4 @@ impl MaterialBuilder {
             }
         })
     }
-}
-
-/// A microfacet distribution with roughnesses `alpha_u`, `alpha_v`.
-fn microfacet(d: &MicrofacetDesc, alpha_u: f32, alpha_v: f32) -> Microfacet {
-    Microfacet::new(
-        match d.kind {
-            MicrofacetKind::Beckmann => MicrofacetType::Beckmann,
-            MicrofacetKind::Ggx => MicrofacetType::Ggx,
-        },
-        alpha_u,
-        alpha_v,
-        d.sample_visible,
-    )
 }

@@ -1,71 +1,22 @@
-//! BSDFs: `diffuse`, conductors, dielectrics, plastics, `principled`, `principledthin`, and
-//! Mitsuba's adapters (`twosided`, `mask`, `blendbsdf`, `normalmap`, `bumpmap`, `null`).
+//! BSDFs: the leaf plugins, each read through its parameter table (`crate::bsdf::plugin`:
+//! `diffuse`, conductors, dielectrics, plastics, `phong`, `principled`, `principledthin`),
+//! and Mitsuba's adapters (`twosided`, `mask`, `blendbsdf`, `normalmap`, `bumpmap`, `null`).
 //! Parameters Mitsuba reads as textures are [`TextureDesc`]s.
 
 use super::texture::{texture_desc, texture_or, texture_param, Children};
 use super::*;
-use crate::bsdf::{BsdfParam, ParamKind, PluginInfo};
+use crate::bsdf::{ParamKind, PluginInfo};
 use crate::spectrum::ColorRole;
 
 #[derive(Clone, Debug, PartialEq)]
 pub enum BsdfDesc {
-    Diffuse {
-        reflectance: TextureDesc,
-    },
     TwoSided {
         front: Box<BsdfDesc>,
         back: Box<BsdfDesc>,
     },
-    /// `conductor`: complex IOR (from `eta`/`k` or a named `material`).
-    Conductor {
-        eta: TextureDesc,
-        k: TextureDesc,
-        specular_reflectance: TextureDesc,
-    },
-    RoughConductor {
-        distribution: MicrofacetDesc,
-        eta: TextureDesc,
-        k: TextureDesc,
-        specular_reflectance: TextureDesc,
-    },
-    /// `dielectric`; IORs resolved to numbers (presets looked up).
-    Dielectric {
-        int_ior: f64,
-        ext_ior: f64,
-        specular_reflectance: TextureDesc,
-        specular_transmittance: TextureDesc,
-    },
-    ThinDielectric {
-        int_ior: f64,
-        ext_ior: f64,
-        specular_reflectance: TextureDesc,
-        specular_transmittance: TextureDesc,
-    },
-    RoughDielectric {
-        distribution: MicrofacetDesc,
-        int_ior: f64,
-        ext_ior: f64,
-        specular_reflectance: TextureDesc,
-        specular_transmittance: TextureDesc,
-    },
-    Plastic {
-        int_ior: f64,
-        ext_ior: f64,
-        diffuse_reflectance: TextureDesc,
-        specular_reflectance: TextureDesc,
-        nonlinear: bool,
-    },
-    /// `roughplastic`; its roughness is a number (Mitsuba precomputes tables for it).
-    RoughPlastic {
-        distribution: MicrofacetDesc,
-        int_ior: f64,
-        ext_ior: f64,
-        diffuse_reflectance: TextureDesc,
-        specular_reflectance: TextureDesc,
-        nonlinear: bool,
-    },
-    /// A plugin read through its parameter table (`crate::bsdf::TABLE_PLUGINS`): one
-    /// texture (a plain number as a constant) per parameter, in table order.
+    /// A leaf BSDF, read through its plugin's parameter table (`crate::bsdf::TABLE_PLUGINS`):
+    /// one texture per parameter, in table order (a plain number, flag, choice or IOR as a
+    /// constant).
     Table {
         plugin: &'static str,
         params: Vec<TextureDesc>,
@@ -95,110 +46,13 @@ pub enum BsdfDesc {
     },
     /// `null`: no interaction, light passes straight through.
     Null,
-    /// `principled` or `principledthin`.
-    Principled(Box<PrincipledDesc>),
-}
-
-/// Mitsuba's `principled` (Disney) BSDF and its thin-sheet variant.
-#[derive(Clone, Debug, PartialEq)]
-pub struct PrincipledDesc {
-    /// `principledthin`.
-    pub thin: bool,
-    /// The texture parameters the scene gives (the others keep Mitsuba's defaults).
-    pub params: Vec<(BsdfParam, TextureDesc)>,
-    /// `principled`: `eta` if given, else the one `specular` stands for (not both).
-    pub eta: Option<f64>,
-    pub specular: f64,
-    /// `spec_trans` given as a texture or a float other than 0 (Mitsuba's `get_flag`).
-    pub has_spec_trans: bool,
-    /// Sampling rates: `principled`'s diffuse_reflectance, main_specular and clearcoat;
-    /// `principledthin`'s specular_reflectance, specular_transmittance, diffuse_reflectance
-    /// and diffuse_transmittance.
-    pub sampling_rates: Vec<f64>,
-}
-
-/// Microfacet distribution parameters shared by the rough BSDFs (Mitsuba's `distribution`,
-/// `alpha` or `alpha_u`/`alpha_v` as one-value textures, `sample_visible`).
-#[derive(Clone, Debug, PartialEq)]
-pub struct MicrofacetDesc {
-    pub kind: MicrofacetKind,
-    pub alpha_u: TextureDesc,
-    pub alpha_v: TextureDesc,
-    pub sample_visible: bool,
-}
-
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub enum MicrofacetKind {
-    Beckmann,
-    Ggx,
 }
 
 impl BsdfDesc {
     /// The image files the BSDF's textures (and those of the BSDFs it nests) read.
     pub fn files<'a>(&'a self, out: &mut Vec<&'a Path>) {
-        let mut tex = |t: &'a TextureDesc| t.files(out);
         match self {
-            BsdfDesc::Diffuse { reflectance } => tex(reflectance),
-            BsdfDesc::Conductor {
-                eta,
-                k,
-                specular_reflectance,
-            } => {
-                tex(eta);
-                tex(k);
-                tex(specular_reflectance);
-            }
-            BsdfDesc::RoughConductor {
-                distribution,
-                eta,
-                k,
-                specular_reflectance,
-            } => {
-                tex(&distribution.alpha_u);
-                tex(&distribution.alpha_v);
-                tex(eta);
-                tex(k);
-                tex(specular_reflectance);
-            }
-            BsdfDesc::Dielectric {
-                specular_reflectance,
-                specular_transmittance,
-                ..
-            }
-            | BsdfDesc::ThinDielectric {
-                specular_reflectance,
-                specular_transmittance,
-                ..
-            } => {
-                tex(specular_reflectance);
-                tex(specular_transmittance);
-            }
-            BsdfDesc::RoughDielectric {
-                distribution,
-                specular_reflectance,
-                specular_transmittance,
-                ..
-            } => {
-                tex(&distribution.alpha_u);
-                tex(&distribution.alpha_v);
-                tex(specular_reflectance);
-                tex(specular_transmittance);
-            }
-            BsdfDesc::Plastic {
-                diffuse_reflectance,
-                specular_reflectance,
-                ..
-            }
-            | BsdfDesc::RoughPlastic {
-                diffuse_reflectance,
-                specular_reflectance,
-                ..
-            } => {
-                tex(diffuse_reflectance);
-                tex(specular_reflectance);
-            }
-            BsdfDesc::Principled(p) => p.params.iter().for_each(|(_, t)| tex(t)),
-            BsdfDesc::Table { params, .. } => params.iter().for_each(tex),
+            BsdfDesc::Table { params, .. } => params.iter().for_each(|t| t.files(out)),
             BsdfDesc::Null => {}
             BsdfDesc::TwoSided { front, back } => {
                 front.files(out);
@@ -228,9 +82,33 @@ impl BsdfDesc {
 
     /// Mitsuba's default for a shape without a BSDF: diffuse with reflectance 0.5.
     pub fn default_diffuse() -> Self {
-        BsdfDesc::Diffuse {
-            reflectance: TextureDesc::value(0.5),
+        Self::diffuse(TextureDesc::value(0.5))
+    }
+
+    /// `diffuse` with this reflectance.
+    pub fn diffuse(reflectance: TextureDesc) -> Self {
+        BsdfDesc::Table {
+            plugin: "diffuse",
+            params: vec![reflectance],
         }
+    }
+
+    /// The plugin's name in scene files, for a leaf BSDF.
+    pub fn plugin(&self) -> Option<&'static str> {
+        match self {
+            BsdfDesc::Table { plugin, .. } => Some(plugin),
+            _ => None,
+        }
+    }
+
+    /// The parameter `name` of a leaf BSDF read through its table.
+    pub fn param(&self, name: &str) -> Option<&TextureDesc> {
+        let BsdfDesc::Table { plugin, params } = self else {
+            return None;
+        };
+        let info = crate::bsdf::table_plugin(plugin)?;
+        let i = info.params.iter().position(|s| s.name == name)?;
+        params.get(i)
     }
 }
 
@@ -261,16 +139,6 @@ pub(super) fn bsdf_desc(cx: &Ctx, o: &Arc<Object>) -> Result<BsdfDesc> {
         return Ok(desc);
     }
     let desc = match o.plugin.as_str() {
-        "diffuse" => BsdfDesc::Diffuse {
-            reflectance: texture_or(
-                cx,
-                &mut p,
-                &mut ch,
-                "reflectance",
-                refl,
-                TextureDesc::value(0.5),
-            )?,
-        },
         "twosided" => {
             if let Some((true, loc)) = p
                 .take("allow_transmission")
@@ -306,132 +174,6 @@ pub(super) fn bsdf_desc(cx: &Ctx, o: &Arc<Object>) -> Result<BsdfDesc> {
             BsdfDesc::TwoSided {
                 front: Box::new(front),
                 back: Box::new(back),
-            }
-        }
-        "conductor" | "roughconductor" => {
-            let distribution = if o.plugin == "roughconductor" {
-                Some(microfacet_desc(cx, &mut p, &mut ch, o, true)?)
-            } else {
-                None
-            };
-            let (eta, k) = conductor_ior(cx, &mut p, &mut ch, o)?;
-            let specular_reflectance = texture_or(
-                cx,
-                &mut p,
-                &mut ch,
-                "specular_reflectance",
-                refl,
-                TextureDesc::value(1.0),
-            )?;
-            match distribution {
-                None => BsdfDesc::Conductor {
-                    eta,
-                    k,
-                    specular_reflectance,
-                },
-                Some(distribution) => BsdfDesc::RoughConductor {
-                    distribution,
-                    eta,
-                    k,
-                    specular_reflectance,
-                },
-            }
-        }
-        "dielectric" | "thindielectric" | "roughdielectric" => {
-            let distribution = if o.plugin == "roughdielectric" {
-                Some(microfacet_desc(cx, &mut p, &mut ch, o, true)?)
-            } else {
-                None
-            };
-            let int_ior = ior(&mut p, o, "int_ior", "bk7")?;
-            let ext_ior = ior(&mut p, o, "ext_ior", "air")?;
-            let specular_reflectance = texture_or(
-                cx,
-                &mut p,
-                &mut ch,
-                "specular_reflectance",
-                refl,
-                TextureDesc::value(1.0),
-            )?;
-            let specular_transmittance = texture_or(
-                cx,
-                &mut p,
-                &mut ch,
-                "specular_transmittance",
-                refl,
-                TextureDesc::value(1.0),
-            )?;
-            match (o.plugin.as_str(), distribution) {
-                ("roughdielectric", Some(distribution)) => BsdfDesc::RoughDielectric {
-                    distribution,
-                    int_ior,
-                    ext_ior,
-                    specular_reflectance,
-                    specular_transmittance,
-                },
-                ("thindielectric", _) => BsdfDesc::ThinDielectric {
-                    int_ior,
-                    ext_ior,
-                    specular_reflectance,
-                    specular_transmittance,
-                },
-                _ => BsdfDesc::Dielectric {
-                    int_ior,
-                    ext_ior,
-                    specular_reflectance,
-                    specular_transmittance,
-                },
-            }
-        }
-        "plastic" | "roughplastic" => {
-            let distribution = if o.plugin == "roughplastic" {
-                // Mitsuba's roughplastic is isotropic, with a numeric roughness.
-                let d = microfacet_desc(cx, &mut p, &mut ch, o, false)?;
-                if d.alpha_u.constant_scalar().is_none() {
-                    return Err(Error::scene(
-                        &o.location,
-                        format!("the alpha of {} must be a number, not a texture (Mitsuba precomputes its tables from it)", describe(o)),
-                    ));
-                }
-                Some(d)
-            } else {
-                None
-            };
-            let int_ior = ior(&mut p, o, "int_ior", "polypropylene")?;
-            let ext_ior = ior(&mut p, o, "ext_ior", "air")?;
-            let diffuse_reflectance = texture_or(
-                cx,
-                &mut p,
-                &mut ch,
-                "diffuse_reflectance",
-                refl,
-                TextureDesc::value(0.5),
-            )?;
-            let specular_reflectance = texture_or(
-                cx,
-                &mut p,
-                &mut ch,
-                "specular_reflectance",
-                refl,
-                TextureDesc::value(1.0),
-            )?;
-            let nonlinear = p.boolean("nonlinear", false)?;
-            match distribution {
-                None => BsdfDesc::Plastic {
-                    int_ior,
-                    ext_ior,
-                    diffuse_reflectance,
-                    specular_reflectance,
-                    nonlinear,
-                },
-                Some(distribution) => BsdfDesc::RoughPlastic {
-                    distribution,
-                    int_ior,
-                    ext_ior,
-                    diffuse_reflectance,
-                    specular_reflectance,
-                    nonlinear,
-                },
             }
         }
         "mask" => {
@@ -519,7 +261,6 @@ pub(super) fn bsdf_desc(cx: &Ctx, o: &Arc<Object>) -> Result<BsdfDesc> {
             }
         }
         "null" => BsdfDesc::Null,
-        "principled" | "principledthin" => principled_desc(cx, &mut p, &mut ch, o)?,
         _ => return Err(unsupported_plugin(o)),
     };
     cx.finish(p)?;
@@ -527,8 +268,9 @@ pub(super) fn bsdf_desc(cx: &Ctx, o: &Arc<Object>) -> Result<BsdfDesc> {
     Ok(desc)
 }
 
-/// A plugin with a parameter table: each parameter from the scene or its default, a constant
-/// checked against the parameter's range, then the plugin's check across parameters.
+/// A leaf BSDF read through its parameter table: each parameter from the scene or its
+/// default, read as its kind says (`crate::bsdf::ParamKind`), a constant of a colour or
+/// number checked against the parameter's range, then the plugin's check across parameters.
 fn table_desc(
     cx: &Ctx,
     p: &mut Props,
@@ -538,19 +280,81 @@ fn table_desc(
 ) -> Result<BsdfDesc> {
     let mut params = Vec::with_capacity(info.params.len());
     let mut constants = Vec::with_capacity(info.params.len());
-    for spec in info.params {
+    // The second of a pair read together (roughness v, conductor k), for the next entry.
+    let mut second: Option<TextureDesc> = None;
+    for (i, spec) in info.params.iter().enumerate() {
         let default = TextureDesc::value(spec.default);
+        // The default of the entry a pair's first one reads with it.
+        let next_default = info.params.get(i + 1).map_or(spec.default, |s| s.default);
         let t = match spec.kind {
             ParamKind::Color(role) => texture_or(cx, p, ch, spec.name, role, default)?,
-            ParamKind::Number => texture_or(cx, p, ch, spec.name, ColorRole::Unbounded, default)?,
+            ParamKind::Number(role) => texture_or(cx, p, ch, spec.name, role, default)?,
+            ParamKind::Exclusive(other) => {
+                let has = |n: &str| o.properties.iter().any(|q| q.name == n);
+                if has(spec.name) && has(other) {
+                    return Err(Error::scene(
+                        &o.location,
+                        format!(
+                            "{}: give either '{}' or '{other}', not both",
+                            describe(o),
+                            spec.name
+                        ),
+                    ));
+                }
+                TextureDesc::value(if has(spec.name) {
+                    positive(p.float(spec.name, 0.0)?, spec.name, o)?
+                } else {
+                    0.0
+                })
+            }
+            // Mitsuba's get_flag: given, and not a number equal to 0.
+            ParamKind::Given(name) => TextureDesc::value(match p.peek(name) {
+                Some(Value::Float(x)) => (*x != 0.0) as u8 as f64,
+                Some(Value::Integer(i)) => (*i != 0) as u8 as f64,
+                Some(_) => 1.0,
+                None => ch.has(name) as u8 as f64,
+            }),
             ParamKind::Float => TextureDesc::value(p.float(spec.name, spec.default)?),
+            ParamKind::Bool => {
+                let b = p.boolean(spec.name, spec.default != 0.0)?;
+                TextureDesc::value(if b { 1.0 } else { 0.0 })
+            }
+            ParamKind::Choice(names) => {
+                TextureDesc::value(choice(p, o, spec.name, names, spec.default)? as f64)
+            }
+            ParamKind::Ior(preset) => TextureDesc::value(ior(p, o, spec.name, preset)?),
+            ParamKind::Roughness {
+                anisotropic,
+                texture,
+            } => {
+                let (u, v) = roughness(cx, p, ch, o, (anisotropic, texture), spec.default)?;
+                if anisotropic {
+                    second = Some(v);
+                }
+                u
+            }
+            ParamKind::ConductorEta => {
+                let (eta, k) = conductor_ior(cx, p, ch, o, (spec.default, next_default))?;
+                second = Some(k);
+                eta
+            }
+            ParamKind::RoughnessV | ParamKind::ConductorK => second.take().ok_or_else(|| {
+                Error::Invalid(format!(
+                    "the parameter table of {} has {} without the entry it pairs with",
+                    info.name, spec.name
+                ))
+            })?,
         };
         let constant = if spec.is_scalar() {
             t.constant_scalar().map(DVec3::splat)
         } else {
             t.constant_rgb()
         };
-        if let Some(c) = constant {
+        let ranged = matches!(
+            spec.kind,
+            ParamKind::Color(_) | ParamKind::Number(_) | ParamKind::Float
+        );
+        if let (Some(c), true) = (constant, ranged) {
             let bad = if spec.is_scalar() {
                 (!(spec.min..=spec.max).contains(&c.x)).then(|| format!("{}", c.x))
             } else {
@@ -580,115 +384,23 @@ fn table_desc(
     })
 }
 
-/// `principled` and `principledthin` (Mitsuba 3.9.1: every parameter but `eta`/`specular`
-/// and the sampling rates is a texture; `eta` is one for `principledthin`).
-fn principled_desc(cx: &Ctx, p: &mut Props, ch: &mut Children, o: &Object) -> Result<BsdfDesc> {
-    use BsdfParam as P;
-    let thin = o.plugin == "principledthin";
-    let refl = ColorRole::Reflectance;
-    let mut names: Vec<(&str, BsdfParam, ColorRole)> = vec![
-        ("base_color", P::BaseColor, refl),
-        ("roughness", P::Roughness, refl),
-        ("anisotropic", P::Anisotropic, refl),
-        ("spec_trans", P::SpecTrans, refl),
-        ("sheen", P::Sheen, refl),
-        ("sheen_tint", P::SheenTint, refl),
-        ("flatness", P::Flatness, refl),
-        ("spec_tint", P::SpecTint, refl),
-    ];
-    if thin {
-        names.extend([
-            ("eta", P::SheetEta, ColorRole::Unbounded),
-            ("diff_trans", P::DiffTrans, refl),
-        ]);
-    } else {
-        names.extend([
-            ("metallic", P::Metallic, refl),
-            ("clearcoat", P::Clearcoat, refl),
-            ("clearcoat_gloss", P::ClearcoatGloss, refl),
-        ]);
-    }
-    // Mitsuba's get_flag: given, and not a float equal to 0.
-    let has_spec_trans = match p.peek("spec_trans") {
-        Some(Value::Float(x)) => *x != 0.0,
-        Some(Value::Integer(i)) => *i != 0,
-        Some(_) => true,
-        None => ch.has("spec_trans"),
-    };
-    let mut params = Vec::new();
-    for (name, param, role) in names {
-        if let Some(t) = texture_param(cx, p, ch, name, role)? {
-            if let Some(v) = t.constant_rgb() {
-                if !v.is_finite() {
-                    return Err(Error::scene(
-                        &o.location,
-                        format!("{name} of {} must be finite", describe(o)),
-                    ));
-                }
-            }
-            params.push((param, t));
-        }
-    }
-    let (eta, specular) = if thin {
-        (None, 0.5)
-    } else {
-        let has = |n: &str| o.properties.iter().any(|q| q.name == n);
-        if has("eta") && has("specular") {
-            return Err(Error::scene(
-                &o.location,
-                format!("{}: give either 'eta' or 'specular', not both", describe(o)),
-            ));
-        }
-        let eta = if has("eta") {
-            Some(positive(p.float("eta", 1.5)?, "eta", o)?)
-        } else {
-            None
-        };
-        let specular = p.float("specular", 0.5)?;
-        if !(0.0..=1.0).contains(&specular) {
-            return Err(Error::scene(
-                &o.location,
+/// A string that must be one of `names` (default: the name at index `default`), as its
+/// index.
+fn choice(p: &mut Props, o: &Object, name: &str, names: &[&str], default: f64) -> Result<usize> {
+    match p.string(name)? {
+        None => Ok(default as usize),
+        Some((s, loc)) => names.iter().position(|n| *n == s).ok_or_else(|| {
+            let quoted: Vec<String> = names.iter().map(|n| format!("\"{n}\"")).collect();
+            Error::scene(
+                loc,
                 format!(
-                    "specular of {} must lie in [0, 1], got {specular}",
-                    describe(o)
+                    "invalid {name} '{s}' of {}: must be {}",
+                    describe(o),
+                    quoted.join(" or ")
                 ),
-            ));
-        }
-        (eta, specular)
-    };
-    let rate_names: &[&str] = if thin {
-        &[
-            "specular_reflectance_sampling_rate",
-            "specular_transmittance_sampling_rate",
-            "diffuse_reflectance_sampling_rate",
-            "diffuse_transmittance_sampling_rate",
-        ]
-    } else {
-        &[
-            "diffuse_reflectance_sampling_rate",
-            "main_specular_sampling_rate",
-            "clearcoat_sampling_rate",
-        ]
-    };
-    let mut sampling_rates = Vec::new();
-    for name in rate_names {
-        let r = p.float(name, 1.0)?;
-        if !(r >= 0.0 && r.is_finite()) {
-            return Err(Error::scene(
-                &o.location,
-                format!("{name} of {} must be finite and >= 0, got {r}", describe(o)),
-            ));
-        }
-        sampling_rates.push(r);
+            )
+        }),
     }
-    Ok(BsdfDesc::Principled(Box::new(PrincipledDesc {
-        thin,
-        params,
-        eta,
-        specular,
-        has_spec_trans,
-        sampling_rates,
-    })))
 }
 
 /// An index of refraction given as a number or as one of Mitsuba's named presets.
@@ -718,12 +430,14 @@ pub(super) fn ior(p: &mut Props, o: &Object, name: &str, default: &str) -> Resul
 }
 
 /// `eta` and `k` of a conductor: textures (numbers, colours, spectra), or a named `material`
-/// (not both), as in Mitsuba; the default `none` is the ideal mirror η = 0, k = 1.
-pub(super) fn conductor_ior(
+/// (not both), as in Mitsuba; without either, `defaults` (the `none` material's η = 0,
+/// k = 1: the ideal mirror).
+fn conductor_ior(
     cx: &Ctx,
     p: &mut Props,
     ch: &mut Children,
     o: &Object,
+    defaults: (f64, f64),
 ) -> Result<(TextureDesc, TextureDesc)> {
     let material = p.string("material")?;
     let eta = texture_param(cx, p, ch, "eta", ColorRole::Unbounded)?;
@@ -758,8 +472,8 @@ pub(super) fn conductor_ior(
             Ok((v(e), v(kk)))
         }
         _ => {
-            let eta = eta.unwrap_or(TextureDesc::value(0.0));
-            let k = k.unwrap_or(TextureDesc::value(1.0));
+            let eta = eta.unwrap_or(TextureDesc::value(defaults.0));
+            let k = k.unwrap_or(TextureDesc::value(defaults.1));
             for t in [&eta, &k] {
                 if let Some(c) = t.constant_rgb() {
                     if !(c.is_finite() && c.min_element() >= 0.0) {
@@ -775,39 +489,25 @@ pub(super) fn conductor_ior(
     }
 }
 
-/// Mitsuba's microfacet parameters: `distribution` (beckmann | ggx, default beckmann),
-/// `alpha` (default 0.1) or, when `anisotropic` is allowed, both `alpha_u` and `alpha_v`
-/// (numbers or one-value textures); `sample_visible` (default true). A numeric roughness must
-/// be finite and >= 0 (Mitsuba accepts negative values without meaning; penumbra refuses
-/// them).
-pub(super) fn microfacet_desc(
+/// Mitsuba's microfacet roughness: `alpha` (`default`, Mitsuba's 0.1) or, when `anisotropic` is allowed,
+/// both `alpha_u` and `alpha_v` (numbers, or one-value textures where `texture` allows), as
+/// (u, v). A numeric roughness must be finite and >= 0 (Mitsuba accepts negative values
+/// without meaning; penumbra refuses them).
+fn roughness(
     cx: &Ctx,
     p: &mut Props,
     ch: &mut Children,
     o: &Object,
-    anisotropic: bool,
-) -> Result<MicrofacetDesc> {
-    let kind = match p.string("distribution")? {
-        None => MicrofacetKind::Beckmann,
-        Some(("beckmann", _)) => MicrofacetKind::Beckmann,
-        Some(("ggx", _)) => MicrofacetKind::Ggx,
-        Some((s, loc)) => {
-            return Err(Error::scene(
-                loc,
-                format!(
-                    "invalid distribution '{s}' of {}: must be \"beckmann\" or \"ggx\"",
-                    describe(o)
-                ),
-            ))
-        }
-    };
+    (anisotropic, texture): (bool, bool),
+    default: f64,
+) -> Result<(TextureDesc, TextureDesc)> {
     let unb = ColorRole::Unbounded;
     let alpha = texture_param(cx, p, ch, "alpha", unb)?;
     let u = texture_param(cx, p, ch, "alpha_u", unb)?;
     let v = texture_param(cx, p, ch, "alpha_v", unb)?;
     let (alpha_u, alpha_v) = match (alpha, u, v) {
         (a, None, None) => {
-            let a = a.unwrap_or(TextureDesc::value(0.1));
+            let a = a.unwrap_or(TextureDesc::value(default));
             (a.clone(), a)
         }
         // Mitsuba's isotropic-only models (roughplastic) take alpha_u and alpha_v when they
@@ -861,11 +561,11 @@ pub(super) fn microfacet_desc(
             }
         }
     }
-    let sample_visible = p.boolean("sample_visible", true)?;
-    Ok(MicrofacetDesc {
-        kind,
-        alpha_u,
-        alpha_v,
-        sample_visible,
-    })
+    if !texture && alpha_u.constant_scalar().is_none() {
+        return Err(Error::scene(
+            &o.location,
+            format!("the alpha of {} must be a number, not a texture (Mitsuba precomputes its tables from it)", describe(o)),
+        ));
+    }
+    Ok((alpha_u, alpha_v))
 }

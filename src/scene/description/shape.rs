@@ -301,9 +301,7 @@ pub(super) fn shape_desc(cx: &Ctx, o: &Arc<Object>) -> Result<ShapeDesc> {
     // the shape is an emitter, so that a visible light does not also reflect.
     let bsdf = bsdf.unwrap_or_else(|| {
         if emitter.is_some() {
-            BsdfDesc::Diffuse {
-                reflectance: TextureDesc::value(0.0),
-            }
+            BsdfDesc::diffuse(TextureDesc::value(0.0))
         } else {
             BsdfDesc::default_diffuse()
         }
