@@ -474,6 +474,22 @@ fn refusals_are_one_line_errors() {
         ),
         ("", r#"<emitter type="point"/>"#, "point emitter"),
         ("", r#"<shape type="disk"/>"#, "is a disk"),
+        ("", r#"<shape type="cylinder"/>"#, "is a cylinder"),
+        (
+            "",
+            r#"<shape type="sphere"><bsdf type="principled"/></shape>"#,
+            "'principled' BSDF",
+        ),
+        (
+            "",
+            r#"<shape type="sphere"><bsdf type="twosided"><bsdf type="mask"><bsdf type="diffuse"/></bsdf></bsdf></shape>"#,
+            "'mask' BSDF",
+        ),
+        (
+            "",
+            r#"<shape type="sphere"><bsdf type="blendbsdf"><float name="weight" value="0.5"/><bsdf type="diffuse"/><bsdf type="plastic"/></bsdf></shape>"#,
+            "'blendbsdf' BSDF",
+        ),
         (
             r#"<string name="shading" value="phong"/>"#,
             "",

@@ -106,18 +106,11 @@ fn check_diffuse(materials: &[Material], m: u32) -> std::result::Result<(), &'st
             template: Bsdf::Diffuse(_),
             ..
         }) => Ok(()),
-        Some(Material::Leaf { template, .. }) => Err(template.plugin_name()),
         Some(Material::TwoSided { front, back }) => {
             check_diffuse(materials, *front)?;
             check_diffuse(materials, *back)
         }
-        Some(Material::Principled { .. }) => Err("principled"),
-        Some(Material::PrincipledThin { .. }) => Err("principledthin"),
-        Some(Material::Mask { .. }) => Err("mask"),
-        Some(Material::Blend { .. }) => Err("blendbsdf"),
-        Some(Material::NormalMap { .. }) => Err("normalmap"),
-        Some(Material::BumpMap { .. }) => Err("bumpmap"),
-        Some(Material::Null) => Err("null"),
+        Some(other) => Err(other.plugin_name()),
         None => Err("missing"),
     }
 }
@@ -144,14 +137,11 @@ impl Layout {
             }
         }
         for (i, shape) in scene.shapes.iter().enumerate() {
-            let kind = match &shape.geometry {
-                ShapeGeometry::Mesh(_) | ShapeGeometry::Sphere(_) => None,
-                ShapeGeometry::Disk(_) => Some("disk"),
-                ShapeGeometry::Cylinder(_) => Some("cylinder"),
-                ShapeGeometry::SdfGrid(_) => Some("sdfgrid"),
-            };
-            if let Some(kind) = kind {
-                return refuse(format!("shape {i} is a {kind}"));
+            if !matches!(
+                shape.geometry,
+                ShapeGeometry::Mesh(_) | ShapeGeometry::Sphere(_)
+            ) {
+                return refuse(format!("shape {i} is a {}", shape.geometry.plugin_name()));
             }
             if let Err(name) = check_diffuse(&scene.materials, shape.material) {
                 return refuse(format!("shape {i} has a '{name}' BSDF"));

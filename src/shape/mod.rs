@@ -70,6 +70,18 @@ pub enum ShapeGeometry {
 }
 
 impl ShapeGeometry {
+    /// The plugin's name in scene files; `mesh` for the triangle meshes (`obj`, `ply`,
+    /// `serialized`, `rectangle`, `cube` all become one).
+    pub fn plugin_name(&self) -> &'static str {
+        match self {
+            ShapeGeometry::Mesh(_) => "mesh",
+            ShapeGeometry::Sphere(_) => "sphere",
+            ShapeGeometry::Disk(_) => "disk",
+            ShapeGeometry::Cylinder(_) => "cylinder",
+            ShapeGeometry::SdfGrid(_) => "sdfgrid",
+        }
+    }
+
     /// Total surface area, in world units squared.
     pub fn area(&self) -> f64 {
         match self {
