@@ -317,6 +317,80 @@ fn variance_channels() {
     assert!(variance.iter().flatten().any(|v| *v > 0.0));
 }
 
+/// The variance channels are the variance of one sample (box filter: spp × the variance of
+/// the pixel value), checked against independent truth: the empirical variance of the pixel
+/// values over 16 seeds (issue 44: an inflated variance passed the test above, and it makes
+/// every z-test easier). Per pixel, d = Σ_c (empirical variance − mean over seeds of
+/// variance / spp); both are unbiased, so E[d] = 0, and over the 256 pixels (independent:
+/// their samples are) z = mean(d) / (sd(d) / √256) is within ±3.29 (two-sided p = 0.001).
+/// Seen: z = −0.93 as is; an estimate 20% too large gives z = −7.7, 20% too small +6.5.
+#[test]
+fn variance_channels_match_the_variance_across_seeds() {
+    let dir = TempDir::new("variance-seeds");
+    // Every pixel sees the same diffuse plane under a uniform sky, lit directly: the same
+    // distribution of samples at every pixel, so the 256 pixels are exchangeable.
+    let scene = dir.write(
+        "sky.xml",
+        &scene(
+            r#"<shape type="rectangle"><transform name="to_world"><scale value="10"/></transform><bsdf type="diffuse"/></shape>
+               <emitter type="constant"/>
+               <integrator type="path"><integer name="max_depth" value="2"/></integrator>"#,
+        ),
+    );
+    let (seeds, spp) = (16, 4);
+    let mut values: Vec<Vec<[f32; 3]>> = Vec::new();
+    let mut predicted = vec![[0.0f64; 3]; 256];
+    for seed in 0..seeds {
+        let exr_path = dir.path(&format!("s{seed}.exr"));
+        let out = penumbra([
+            "render".as_ref(),
+            scene.as_os_str(),
+            "-o".as_ref(),
+            exr_path.as_os_str(),
+            "--spp".as_ref(),
+            spp.to_string().as_ref(),
+            "--seed".as_ref(),
+            seed.to_string().as_ref(),
+            "--variance".as_ref(),
+            "--quiet".as_ref(),
+        ]);
+        assert_success(&out);
+        let image = read_exr(&exr_path);
+        let variance = image.variance.expect("no variance channels");
+        for (p, v) in predicted.iter_mut().zip(&variance) {
+            for c in 0..3 {
+                p[c] += v[c] as f64 / spp as f64 / seeds as f64;
+            }
+        }
+        values.push(image.rgb);
+    }
+    let d: Vec<f64> = (0..256)
+        .map(|i| {
+            (0..3)
+                .map(|c| {
+                    let x: Vec<f64> = values.iter().map(|v| v[i][c] as f64).collect();
+                    let mean = x.iter().sum::<f64>() / seeds as f64;
+                    let empirical =
+                        x.iter().map(|v| (v - mean).powi(2)).sum::<f64>() / (seeds - 1) as f64;
+                    empirical - predicted[i][c]
+                })
+                .sum()
+        })
+        .collect();
+    let n = d.len() as f64;
+    let mean = d.iter().sum::<f64>() / n;
+    let sd = (d.iter().map(|v| (v - mean).powi(2)).sum::<f64>() / (n - 1.0)).sqrt();
+    let z = mean / (sd / n.sqrt());
+    let total: f64 = predicted.iter().flatten().sum();
+    assert!(total > 0.0);
+    assert!(
+        z.abs() < 3.29,
+        "variance channels vs the variance across seeds: z = {z:.2} (mean difference {mean:.3e}, \
+         mean predicted per pixel {:.3e})",
+        total / 256.0
+    );
+}
+
 #[test]
 fn same_seed_same_image_at_any_thread_count() {
     let dir = TempDir::new("determinism");
