@@ -96,6 +96,14 @@ pub struct Judgement {
     /// Per channel (R, G, B): (mean of the render − mean of the reference) / mean of the
     /// reference.
     pub mean_rel_diff: [f64; 3],
+    /// Per channel: the standard error of the render's image mean, √(Σ σ²_p / spp) / pixels,
+    /// with σ²_p the larger of the reference's and the render's own per-sample variance
+    /// summed over the pixels (the reference's noise is neglected, as Mitsuba's rule does).
+    pub mean_se: [f64; 3],
+    /// Per channel: (mean of the render − mean of the reference) / [`Judgement::mean_se`].
+    pub mean_z: [f64; 3],
+    /// The mean of the reference, per channel.
+    pub reference_mean: [f64; 3],
     /// Wall time of the render (scene loading excluded), seconds.
     pub seconds: f64,
 }
@@ -221,12 +229,24 @@ fn try_run(scene: &SuiteScene, threads: Option<usize>) -> Result<Judgement, Erro
         let r = mean(&reference.rgb, c);
         (mean(&image, c) - r) / r.abs().max(1e-12)
     });
+    let own = out.film.sample_variance();
+    let sum = |img: &[[f32; 3]], c: usize| img.iter().map(|p| p[c] as f64).sum::<f64>();
+    let mean_se = [0, 1, 2].map(|c| {
+        let var = sum(&variance.rgb, c).max(sum(&own, c));
+        (var / spp as f64).sqrt() / pixels as f64
+    });
+    let reference_mean = [0, 1, 2].map(|c| mean(&reference.rgb, c));
+    let mean_z = [0, 1, 2]
+        .map(|c| (mean(&image, c) - reference_mean[c]) / mean_se[c].max(f64::MIN_POSITIVE));
     Ok(Judgement {
         spp,
         pixels,
         pass_fraction,
         passed,
         mean_rel_diff,
+        mean_se,
+        mean_z,
+        reference_mean,
         seconds,
     })
 }
