@@ -133,7 +133,7 @@ const ANY: &[(&str, Option<&str>)] = &[
 
 /// The files of `dir`, each with its entry of `table`: every file has one and every entry a
 /// file (a file added without its expectation fails).
-fn expected<'a, T: Copy>(dir: &str, table: &'a [(&str, T)]) -> Vec<(std::path::PathBuf, T)> {
+fn expected<T: Copy>(dir: &str, table: &[(&str, T)]) -> Vec<(std::path::PathBuf, T)> {
     let paths = files(dir);
     let names: Vec<String> = paths
         .iter()

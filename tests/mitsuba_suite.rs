@@ -80,7 +80,9 @@ fn mitsuba_regression_suite() {
                                 / (std::f64::consts::SQRT_2 * j.mean_se[c])
                         }
                     };
-                    if !(normal_two_sided_p(z.abs()) > alpha) {
+                    // NaN fails: p is NaN, not > α.
+                    let passes = normal_two_sided_p(z.abs()) > alpha;
+                    if !passes {
                         failures.push(format!(
                             "{} channel {c}: image mean {:+.3}% off the reference{}, z = {z:.2}",
                             s.name,
