@@ -60,78 +60,23 @@ use std::f32::consts::{FRAC_1_PI, PI};
 /// `principled`'s parameters (Mitsuba 3.9.1's names and defaults), in the order of
 /// [`PrincipledParams`]'s fields.
 const PARAMS: &[ParamSpec] = &[
-    ParamSpec::new(
-        "base_color",
-        ParamKind::Color(ColorRole::Reflectance),
-        0.5,
-        "the base colour",
-    ),
-    ParamSpec::new(
-        "roughness",
-        ParamKind::Number(ColorRole::Reflectance),
-        0.5,
-        "roughness of the specular and diffuse lobes",
-    ),
-    ParamSpec::new(
-        "anisotropic",
-        ParamKind::Number(ColorRole::Reflectance),
-        0.0,
-        "anisotropy of the specular lobes",
-    ),
+    SHARED[0],
+    SHARED[1],
+    SHARED[2],
     ParamSpec::new(
         "has_spec_trans",
         ParamKind::Given("spec_trans"),
         0.0,
         "whether spec_trans is given (a texture or not 0): η = 1 and specular = 0 are nudged",
     ),
-    ParamSpec::new(
-        "spec_trans",
-        ParamKind::Number(ColorRole::Reflectance),
-        0.0,
-        "weight of the specular transmission",
-    ),
-    ParamSpec::new(
-        "sheen",
-        ParamKind::Number(ColorRole::Reflectance),
-        0.0,
-        "weight of the sheen lobe",
-    ),
-    ParamSpec::new(
-        "sheen_tint",
-        ParamKind::Number(ColorRole::Reflectance),
-        0.0,
-        "how much the sheen takes the base colour",
-    ),
-    ParamSpec::new(
-        "flatness",
-        ParamKind::Number(ColorRole::Reflectance),
-        0.0,
-        "blend of the diffuse lobe towards the subsurface approximation",
-    ),
-    ParamSpec::new(
-        "spec_tint",
-        ParamKind::Number(ColorRole::Reflectance),
-        0.0,
-        "how much the specular reflection takes the base colour",
-    ),
-    ParamSpec::new(
-        "metallic",
-        ParamKind::Number(ColorRole::Reflectance),
-        0.0,
-        "blend towards a metal",
-    ),
-    ParamSpec::new(
-        "clearcoat",
-        ParamKind::Number(ColorRole::Reflectance),
-        0.0,
-        "weight of the clearcoat lobe",
-    ),
-    ParamSpec::new(
-        "clearcoat_gloss",
-        ParamKind::Number(ColorRole::Reflectance),
-        0.0,
-        "glossiness of the clearcoat",
-    ),
+    SHARED[3],
+    SHARED[4],
+    SHARED[5],
+    SHARED[6],
+    SHARED[7],
+    weight("metallic", 0.0, "blend towards a metal"),
+    weight("clearcoat", 0.0, "weight of the clearcoat lobe"),
+    weight("clearcoat_gloss", 0.0, "glossiness of the clearcoat"),
     ParamSpec::new(
         "eta",
         ParamKind::Exclusive("specular"),
@@ -145,27 +90,67 @@ const PARAMS: &[ParamSpec] = &[
         "normal-incidence reflectance control, as the IOR it stands for",
     )
     .range(0.0, 1.0),
-    ParamSpec::new(
+    rate(
         "diffuse_reflectance_sampling_rate",
-        ParamKind::Float,
-        1.0,
         "sampling weight of the diffuse lobe",
-    )
-    .range(0.0, f64::INFINITY),
-    ParamSpec::new(
+    ),
+    rate(
         "main_specular_sampling_rate",
-        ParamKind::Float,
-        1.0,
         "sampling weight of the main specular lobes",
-    )
-    .range(0.0, f64::INFINITY),
-    ParamSpec::new(
+    ),
+    rate(
         "clearcoat_sampling_rate",
-        ParamKind::Float,
-        1.0,
         "sampling weight of the clearcoat lobe",
+    ),
+];
+
+/// A one-value parameter of the Disney model, texture allowed (read as a reflectance, as
+/// Mitsuba reads them).
+pub(super) const fn weight(name: &'static str, default: f64, doc: &'static str) -> ParamSpec {
+    ParamSpec::new(
+        name,
+        ParamKind::Number(ColorRole::Reflectance),
+        default,
+        doc,
     )
-    .range(0.0, f64::INFINITY),
+}
+
+/// A lobe's sampling rate: a plain number ≥ 0 (default 1).
+pub(super) const fn rate(name: &'static str, doc: &'static str) -> ParamSpec {
+    ParamSpec::new(name, ParamKind::Float, 1.0, doc).range(0.0, f64::INFINITY)
+}
+
+/// The parameters `principled` and `principledthin` share, in principledthin's order.
+pub(super) const SHARED: [ParamSpec; 8] = [
+    ParamSpec::new(
+        "base_color",
+        ParamKind::Color(ColorRole::Reflectance),
+        0.5,
+        "the base colour",
+    ),
+    weight(
+        "roughness",
+        0.5,
+        "roughness of the specular and diffuse lobes",
+    ),
+    weight("anisotropic", 0.0, "anisotropy of the specular lobes"),
+    weight("spec_trans", 0.0, "weight of the specular transmission"),
+    weight("sheen", 0.0, "weight of the sheen lobe"),
+    weight(
+        "sheen_tint",
+        0.0,
+        "how much the sheen takes the base colour",
+    ),
+    weight(
+        "flatness",
+        0.0,
+        "blend of the diffuse lobe towards the subsurface approximation",
+    ),
+    weight(
+        "spec_tint",
+        0.0,
+        "how much the specular reflection takes the base colour",
+    ),
 ];
 
 /// Mitsuba's `principled` parameters, with its defaults, as plain values at a shading point.

@@ -28,8 +28,8 @@ use super::fresnel::{fresnel_dielectric, reflect};
 use super::microfacet::Microfacet;
 use super::plugin::{ParamKind, ParamSpec, PluginCache, TablePlugin};
 use super::principled::{
-    disney_diffuse, disney_ggx, facet_sides_agree, schlick_r0, schlick_weight, schlick_weight_at,
-    sheen_color, tint_color,
+    disney_diffuse, disney_ggx, facet_sides_agree, rate, schlick_r0, schlick_weight,
+    schlick_weight_at, sheen_color, tint_color, weight, SHARED,
 };
 use super::{BsdfSample, Spectrum};
 use crate::sampling::{square_to_cosine_hemisphere, square_to_cosine_hemisphere_pdf};
@@ -41,94 +41,41 @@ use std::f32::consts::FRAC_1_PI;
 /// `principledthin`'s parameters (Mitsuba 3.9.1's names and defaults), in the order of
 /// [`PrincipledThinParams`]'s fields.
 const PARAMS: &[ParamSpec] = &[
-    ParamSpec::new(
-        "base_color",
-        ParamKind::Color(ColorRole::Reflectance),
-        0.5,
-        "the base colour",
-    ),
-    ParamSpec::new(
-        "roughness",
-        ParamKind::Number(ColorRole::Reflectance),
-        0.5,
-        "roughness of the specular and diffuse lobes",
-    ),
-    ParamSpec::new(
-        "anisotropic",
-        ParamKind::Number(ColorRole::Reflectance),
-        0.0,
-        "anisotropy of the specular lobes",
-    ),
-    ParamSpec::new(
-        "spec_trans",
-        ParamKind::Number(ColorRole::Reflectance),
-        0.0,
-        "weight of the specular transmission",
-    ),
-    ParamSpec::new(
-        "sheen",
-        ParamKind::Number(ColorRole::Reflectance),
-        0.0,
-        "weight of the sheen lobe",
-    ),
-    ParamSpec::new(
-        "sheen_tint",
-        ParamKind::Number(ColorRole::Reflectance),
-        0.0,
-        "how much the sheen takes the base colour",
-    ),
-    ParamSpec::new(
-        "flatness",
-        ParamKind::Number(ColorRole::Reflectance),
-        0.0,
-        "blend of the diffuse lobe towards the subsurface approximation",
-    ),
-    ParamSpec::new(
-        "spec_tint",
-        ParamKind::Number(ColorRole::Reflectance),
-        0.0,
-        "how much the specular reflection takes the base colour",
-    ),
+    SHARED[0],
+    SHARED[1],
+    SHARED[2],
+    SHARED[3],
+    SHARED[4],
+    SHARED[5],
+    SHARED[6],
+    SHARED[7],
     ParamSpec::new(
         "eta",
         ParamKind::Number(ColorRole::Unbounded),
         1.5,
         "the sheet's relative IOR",
     ),
-    ParamSpec::new(
+    weight(
         "diff_trans",
-        ParamKind::Number(ColorRole::Reflectance),
         0.0,
         "diffuse transmission, in [0, 2] (the model uses half)",
     ),
-    ParamSpec::new(
+    rate(
         "specular_reflectance_sampling_rate",
-        ParamKind::Float,
-        1.0,
         "sampling weight of the specular reflection",
-    )
-    .range(0.0, f64::INFINITY),
-    ParamSpec::new(
+    ),
+    rate(
         "specular_transmittance_sampling_rate",
-        ParamKind::Float,
-        1.0,
         "sampling weight of the specular transmission",
-    )
-    .range(0.0, f64::INFINITY),
-    ParamSpec::new(
+    ),
+    rate(
         "diffuse_reflectance_sampling_rate",
-        ParamKind::Float,
-        1.0,
         "sampling weight of the diffuse reflection",
-    )
-    .range(0.0, f64::INFINITY),
-    ParamSpec::new(
+    ),
+    rate(
         "diffuse_transmittance_sampling_rate",
-        ParamKind::Float,
-        1.0,
         "sampling weight of the diffuse transmission",
-    )
-    .range(0.0, f64::INFINITY),
+    ),
 ];
 
 /// Mitsuba's `principledthin` parameters, with its defaults, as plain values at a shading
