@@ -155,11 +155,29 @@ impl Scene {
         } else {
             offset_ray_origin(ds.p, ds.p_error, ds.n, -ds.d)
         };
+        Self::ray_between(from, to)
+    }
+
+    /// The shadow ray from `from` to `to` (both already off their surfaces), stopping a
+    /// relative [`SHADOW_EPSILON`] short of `to`.
+    #[inline]
+    pub fn ray_between(from: Vec3, to: Vec3) -> Ray {
         // Normalised: the BVH's slab test works with the inverse direction, and a tiny
         // unnormalised segment (a scene scaled by 1e-4) loses precision there.
         let v = to - from;
         let len = v.length();
         Ray::new(from, v / len, len * (1.0 - SHADOW_EPSILON))
+    }
+
+    /// The shadow ray between the surface points `a` and `b`, each end offset off its
+    /// surface towards the other.
+    #[inline]
+    pub fn ray_between_surfaces(a: &SurfaceInteraction, b: &SurfaceInteraction) -> Ray {
+        let d = b.p - a.p;
+        Self::ray_between(
+            offset_ray_origin(a.p, a.p_error, a.ng, d),
+            offset_ray_origin(b.p, b.p_error, b.ng, -d),
+        )
     }
 
     /// The shadow ray from a point `p` off any surface (a scattering event in a medium) to
@@ -313,10 +331,20 @@ impl Scene {
     /// [`Scene::sample_emitter_direction`] from a point `p` that need not lie on a surface
     /// (a scattering event in a medium).
     pub fn sample_emitter_direction_at(&self, p: Vec3, u: Vec2) -> Option<DirectionSample> {
+        self.sample_emitter_direction_indexed(p, u)
+            .map(|(_, ds)| ds)
+    }
+
+    /// [`Scene::sample_emitter_direction_at`], with the index of the emitter chosen.
+    pub fn sample_emitter_direction_indexed(
+        &self,
+        p: Vec3,
+        u: Vec2,
+    ) -> Option<(usize, DirectionSample)> {
         let (i, ux, pmf) = self.pick_emitter(u.x)?;
         let mut ds = self.emitters[i].sample_direction(p, Vec2::new(ux, u.y), &self.shapes)?;
         ds.pdf *= pmf;
-        Some(ds)
+        Some((i, ds))
     }
 
     /// The solid-angle density with which [`Scene::sample_emitter_direction`] from `p_ref`
