@@ -185,6 +185,7 @@ fn negative_controls(
         Integrator::VolPath(p) => Some(&mut p.max_depth),
         Integrator::VolPathMis(p) => Some(&mut p.max_depth),
         Integrator::ParticleTracer(p) => Some(&mut p.max_depth),
+        Integrator::Bdpt(p) => Some(&mut p.max_depth),
         Integrator::Sppm(p) => Some(&mut p.max_depth),
         Integrator::Whitted(p) => Some(&mut p.max_depth),
         Integrator::Direct(_) | Integrator::Aov(_) | Integrator::Radiosity(_) => None,
