@@ -14,20 +14,25 @@
 //!   afresh as the path tracer draws it ([`Scene::sample_emitter_direction`]), so `path` and
 //!   `bdpt` share their estimators at s ≤ 1;
 //! - t = 1: light vertex y_{s−1} connected to the camera through a lens point (light tracing,
-//!   as `ptracer` does: the BSDF in importance mode, the adjoint shading-normal correction,
-//!   W_e / dist²), splatted onto the film where it lands;
+//!   W_e / dist² as `ptracer` weighs it), splatted onto the film where it lands;
 //! - s, t ≥ 2: the two subpaths' end vertices joined by a shadow ray.
 //!
 //! Paths of one segment are rendered by s = 0 alone (weight 1), as in pbrt-v4.
 //!
-//! **The path contribution every strategy estimates.** With shading normals, a vertex x
-//! between a camera-side neighbour c and a light-side neighbour l contributes
-//! f_s(x) |n_s · ω_xl| |n_g · ω_xc| (the shading cosine towards the light side, the geometric
-//! one towards the camera side): what the path tracer's solid-angle sampling estimates, and
-//! what the light tracer estimates with the importance-mode BSDF times Veach's adjoint
-//! correction (§5.3; [`adjoint_correction`]). A connection s, t ≥ 2 therefore multiplies the
-//! camera vertex's radiance-mode BSDF value (with |n_s · ω|), the light vertex's importance
-//! value times its correction, and 1 / dist².
+//! **The path contribution every strategy estimates** is the path tracer's: a vertex x between
+//! a camera-side neighbour c and a light-side neighbour l contributes the radiance-mode BSDF
+//! value f(ω_xc, ω_xl) (with its cosine, the shading one towards l) times |n_g · ω_xc| (the
+//! geometric cosine towards c, from the area measure). Camera subpaths sample it as the path
+//! tracer does. Light subpaths evaluate the same value with the directions exchanged, divided
+//! by the geometric cosine of the direction they arrived from (which the area measure of the
+//! previous segment supplies): f(ω_xc, ω_xl) |n_g · ω_xc| / |n_g · ω_xl|. That is what a light
+//! tracer's importance-mode BSDF times Veach's adjoint shading-normal correction (§5.3;
+//! `ptracer`) computes wherever the BSDF is a proper adjoint; for Mitsuba's `normalmap` and
+//! `bumpmap`, which are not (a light tracer and a path tracer render different images of
+//! them, in Mitsuba too), it keeps bdpt on the path tracer's image. Only a Dirac-delta lobe
+//! sampled by a light subpath takes the importance-mode weight and the adjoint correction
+//! (no value to exchange directions in). A connection s, t ≥ 2 multiplies both vertices'
+//! values and 1 / dist².
 //!
 //! **MIS weights.** w_s = p_s² / Σ_{s'} p_{s'}², each p_{s'} the density (in the area
 //! product measure) with which strategy s' samples the path. As in pbrt-v4 the ratios
@@ -65,7 +70,7 @@
 //! full image; the images of all strategies add up to the full one) or, with `strategy_mis`
 //! false, unweighted (its own estimate of all the light carried by paths of s + t vertices).
 
-use super::ptracer::{adjoint_correction, camera_splat, ray_to_camera, sees_camera, Splat};
+use super::ptracer::{adjoint_correction, ray_to_camera, sees_camera, Splat};
 use super::{emission_at, pass_through_emitters, PathStats, MAX_SKIPPED_EMITTERS};
 use crate::emitter::{DirectionSample, Emitter};
 use crate::geometry::{Frame, Ray};
@@ -158,6 +163,9 @@ pub struct Vertex {
 pub struct Subpath {
     v: Vec<Vertex>,
     bsdfs: Vec<ShadingBsdf>,
+    /// A light subpath's BSDF in importance mode, for the weight of a delta lobe sampled
+    /// through a transmissive surface.
+    importance: ShadingBsdf,
 }
 
 /// The buffers of one worker: allocated once, reused for every sample.
@@ -269,24 +277,18 @@ impl Subpath {
         }
     }
 
-    /// Looks up the BSDF of surface vertex `i`, in importance mode for light subpaths.
-    fn set_bsdf(&mut self, scene: &Scene, i: usize, importance: bool) {
+    /// Looks up the BSDF of surface vertex `i` (radiance mode, in both subpaths).
+    fn set_bsdf(&mut self, scene: &Scene, i: usize) {
         let si = self.v[i].si;
         let material = scene.shapes[si.shape as usize].material;
-        if let Some(Some(b)) = scene.uniform_bsdfs.get(material as usize) {
-            // Importance mode differs only where light refracts.
-            if !importance || !b.is_transmissive() {
-                self.v[i].bsdf = BsdfRef::Uniform(material);
-                return;
-            }
+        if let Some(Some(_)) = scene.uniform_bsdfs.get(material as usize) {
+            self.v[i].bsdf = BsdfRef::Uniform(material);
+            return;
         }
         while self.bsdfs.len() <= i {
             self.bsdfs.push(ShadingBsdf::new());
         }
         scene.shading_bsdf_into(&si, &mut self.bsdfs[i]);
-        if importance {
-            self.bsdfs[i].set_importance();
-        }
         self.v[i].bsdf = BsdfRef::Own(i as u32);
     }
 
@@ -302,6 +304,19 @@ impl Subpath {
         let wi = v.si.frame.to_local(v.wi);
         bsdf.has_smooth_lobe(wi).then_some((bsdf, wi))
     }
+}
+
+/// What light subpath vertex `v` (BSDF `bsdf`, light arriving from `v.wi`, `wi` in the
+/// shading frame) sends towards the world direction `d` (`wo` in the shading frame): the
+/// path tracer's value with the directions exchanged, f(d, wi) |n_g · d| / |n_g · wi| (see the
+/// module's text).
+#[inline]
+fn light_value(v: &Vertex, bsdf: &ShadingBsdf, wi: Vec3, d: Vec3, wo: Vec3) -> Spectrum {
+    let cos_in = v.si.ng.dot(v.wi).abs();
+    if cos_in <= 0.0 {
+        return Spectrum::ZERO;
+    }
+    bsdf.eval(wo, wi) * (v.si.ng.dot(d).abs() / cos_in)
 }
 
 /// The margin of film positions sampled beyond the window on each side (Mitsuba's
@@ -617,7 +632,8 @@ impl Bdpt {
                 Vec2::ZERO
             };
             let c = scene.camera.connect(qs.p(), u, margin)?;
-            let value = positive(camera_splat(&qs.si, bsdf, qs.beta, qs.wi, wi, &c)?)?;
+            let f = light_value(qs, bsdf, wi, c.d, qs.si.frame.to_local(c.d));
+            let value = positive(qs.beta * f * c.weight)?;
             return Some(Candidate {
                 value,
                 sampled: Some(Vertex::camera(c.p)),
@@ -649,10 +665,8 @@ impl Bdpt {
         if f_p.max_element() <= 0.0 {
             return None;
         }
-        let wo_q = qs.si.frame.to_local(-d);
-        let correction = adjoint_correction(qs.si.ng, qs.wi, wi_q, -d, wo_q)?;
-        let f_q = bsdf_q.eval(wi_q, wo_q);
-        let value = pt.beta * f_p * f_q * (correction / (dist * dist)) * qs.beta;
+        let f_q = light_value(qs, bsdf_q, wi_q, -d, qs.si.frame.to_local(-d));
+        let value = pt.beta * f_p * f_q * qs.beta / (dist * dist);
         Some(Candidate {
             value: positive(value)?,
             sampled: None,
@@ -740,7 +754,7 @@ impl Bdpt {
             cam.v.push(v);
             let i = cam.v.len() - 1;
             // The last vertex too: connections go through its BSDF.
-            cam.set_bsdf(scene, i, false);
+            cam.set_bsdf(scene, i);
             if cam.v.len() >= max_vertices {
                 break;
             }
@@ -867,7 +881,7 @@ impl Bdpt {
             };
             light.v.push(v);
             let i = light.v.len() - 1;
-            light.set_bsdf(scene, i, true);
+            light.set_bsdf(scene, i);
             if light.v.len() >= max_vertices {
                 break;
             }
@@ -882,18 +896,35 @@ impl Bdpt {
                 break;
             };
             let wo_world = si.frame.to_world(bs.wo);
-            let Some(correction) = adjoint_correction(si.ng, wi, wi_local, wo_world, bs.wo) else {
-                break;
-            };
-            let (pdf_fwd, pdf_rev) = if bs.delta {
-                (0.0, 0.0)
+            // The throughput's factor: the value light_value gives (see the module's text)
+            // over the density, or for a delta lobe its importance-mode weight (refraction:
+            // without radiance's 1/η²) with the adjoint correction.
+            let (weight, pdf_fwd, pdf_rev) = if bs.delta {
+                let transmissive = bsdf.is_transmissive();
+                let Some(correction) = adjoint_correction(si.ng, wi, wi_local, wo_world, bs.wo)
+                else {
+                    break;
+                };
+                let weight = if transmissive {
+                    // The same lobe and direction (importance mode changes weights only).
+                    scene.shading_bsdf_into(&si, &mut light.importance);
+                    light.importance.set_importance();
+                    match light.importance.sample(wi_local, u1, u2) {
+                        Some(b) => b.weight,
+                        None => break,
+                    }
+                } else {
+                    bs.weight
+                };
+                (weight * correction, 0.0, 0.0)
             } else {
-                (bs.pdf, bsdf.pdf(bs.wo, wi_local))
+                let f = light_value(&light.v[i], bsdf, wi_local, wo_world, bs.wo);
+                (f / bs.pdf, bs.pdf, bsdf.pdf(bs.wo, wi_local))
             };
             light.v[i].delta = bs.delta;
             let p = light.v[i].p();
             light.v[prev].pdf_rev = convert(p, pdf_rev, &light.v[prev]);
-            beta *= bs.weight * correction;
+            beta *= weight;
             eta *= bs.eta;
             pdf_dir = pdf_fwd;
             if !beta.is_finite() || beta.max_element() <= 0.0 {
@@ -932,20 +963,24 @@ impl Bdpt {
         if n == 2 {
             return 1.0;
         }
-        // Vertex j of the path, from the camera (0) to the light (n − 1).
+        // Vertex j of the path, from the camera (0) to the light (n − 1): for t = 1 the lens
+        // point and for s = 1 the light point drawn for the connection (the light subpath may
+        // be empty then).
+        let drawn = sampled.filter(|_| s == 1 || t == 1);
+        if (s == 1 || t == 1) && drawn.is_none() {
+            return 0.0;
+        }
         let vert = |j: usize| -> &Vertex {
             if j < t {
-                if j == 0 && t == 1 {
-                    sampled.unwrap_or(&cam.v[0])
-                } else {
-                    &cam.v[j]
+                match drawn {
+                    Some(v) if j == 0 && t == 1 => v,
+                    _ => &cam.v[j],
                 }
             } else {
                 let k = n - 1 - j;
-                if k == 0 && s == 1 {
-                    sampled.unwrap_or(&light.v[0])
-                } else {
-                    &light.v[k]
+                match drawn {
+                    Some(v) if k == 0 && s == 1 => v,
+                    _ => &light.v[k],
                 }
             }
         };
