@@ -10,6 +10,7 @@
 pub mod accel;
 pub mod bsdf;
 pub mod camera;
+pub mod display;
 pub mod emitter;
 pub mod error;
 pub mod film;
