@@ -28,6 +28,7 @@ pub mod sampler;
 pub mod sampling;
 pub mod scene;
 pub mod shape;
+pub mod simd;
 pub mod spectrum;
 pub mod texture;
 pub mod volume;

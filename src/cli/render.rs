@@ -8,8 +8,9 @@ use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
 use penumbra::display::{Frame, LiveView};
 use penumbra::io::exr;
 use penumbra::progressive;
-use penumbra::render::Job;
+use penumbra::render::{Engine, Job};
 use penumbra::scene::Scene;
+use penumbra::simd::Backend;
 use std::io::IsTerminal;
 use std::path::{Path, PathBuf};
 use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
@@ -45,6 +46,18 @@ pub(crate) struct RenderArgs {
     /// Worker threads (default: one per core).
     #[arg(long)]
     threads: Option<usize>,
+    /// The engine that renders camera paths: `scalar` (one path at a time) or `lanes` (16
+    /// paths side by side in SIMD lanes, AVX-512 or AVX2 detected at run time; the same
+    /// image bit for bit). The lane engine covers the path integrator; other integrators
+    /// run on the scalar engine, and the summary line says which ran. Default scalar: at
+    /// this stage the lane engine is slower.
+    #[arg(long, value_enum, default_value_t = EngineArg::Scalar)]
+    engine: EngineArg,
+    /// The lane engine's backend instead of the widest this processor runs: avx512, avx2,
+    /// portable or scalar (width 1). For tests and measurements (valgrind cannot run
+    /// AVX-512).
+    #[arg(long, hide = true, value_name = "NAME")]
+    lane_backend: Option<String>,
     /// Also write a tone-mapped sRGB PNG preview.
     #[arg(long, value_name = "PNG")]
     preview: Option<PathBuf>,
@@ -104,6 +117,27 @@ pub(crate) struct RenderArgs {
     /// up to --spp, to be merged with that render's parts.
     #[arg(long, value_name = "SPP", requires = "part", default_value_t = 0)]
     start_spp: u64,
+}
+
+#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
+enum EngineArg {
+    Scalar,
+    Lanes,
+}
+
+/// The engine of `--engine` and `--lane-backend`.
+fn engine(args: &RenderArgs) -> Result<Engine> {
+    let backend = match &args.lane_backend {
+        None => None,
+        Some(name) => Some(Backend::from_name(name).with_context(|| {
+            format!("unknown lane backend '{name}' (avx512, avx2, portable or scalar)")
+        })?),
+    };
+    Ok(match (args.engine, backend) {
+        (EngineArg::Scalar, None) => Engine::Scalar,
+        (EngineArg::Scalar, Some(_)) => bail!("--lane-backend needs --engine lanes"),
+        (EngineArg::Lanes, b) => Engine::Lanes(b),
+    })
 }
 
 fn parse_part(s: &str) -> std::result::Result<(u32, u32), String> {
@@ -258,6 +292,9 @@ pub(crate) fn run_render(args: RenderArgs) -> Result<()> {
         desc.use_integrator(kind)?;
     }
     let mut job = Job::build(&desc)?;
+    job.engine = engine(&args)?;
+    // (fails here, before any work, if a named lane backend cannot run)
+    let engine_ran = job.engine.resolve(&job.integrator)?;
     for w in &job.scene.warnings {
         eprintln!("warning: {w}");
     }
@@ -314,7 +351,7 @@ pub(crate) fn run_render(args: RenderArgs) -> Result<()> {
         stop: Some(signals.stop.clone()),
     };
     if let penumbra::integrator::Integrator::Aov(aov) = &job.integrator {
-        return render_aov(&job.scene, aov, &args, spp, seed);
+        return render_aov(&job.scene, aov, &args, spp, seed, engine_ran);
     }
     if let Some((index, count)) = args.part {
         let plan = progressive::PartPlan {
@@ -369,8 +406,10 @@ pub(crate) fn run_render(args: RenderArgs) -> Result<()> {
             let secs = part.stats.seconds.max(1e-9);
             eprintln!(
                 "part {index}/{count} of {spp} spp: samples {a}..{b} of every pixel, {:.2} s, \
-                 {:.2} Mpath/s, {} non-finite samples dropped -> {}",
+                 engine {}{}, {:.2} Mpath/s, {} non-finite samples dropped -> {}",
                 part.stats.seconds,
+                engine_ran,
+                super::output::lane_summary(&part.stats.lanes),
                 part.stats.paths as f64 / secs / 1e6,
                 part.stats.nonfinite,
                 args.output.display()
@@ -553,6 +592,7 @@ fn render_aov(
     args: &RenderArgs,
     spp: u32,
     seed: u64,
+    engine: penumbra::render::EngineRan,
 ) -> Result<()> {
     if args.resume
         || args.part.is_some()
@@ -580,11 +620,12 @@ fn render_aov(
     if !args.quiet {
         let names: Vec<&str> = channels.iter().map(|(n, _)| n.as_str()).collect();
         eprintln!(
-            "{}x{}, {} spp, {:.2} s, channels {}, {} non-finite samples dropped -> {}",
+            "{}x{}, {} spp, {:.2} s, engine {}, channels {}, {} non-finite samples dropped -> {}",
             scene.width,
             scene.height,
             spp,
             stats.seconds,
+            engine,
             names.join(" "),
             stats.nonfinite,
             args.output.display()
