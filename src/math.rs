@@ -1,6 +1,10 @@
 //! Numerical building blocks shared by the renderer and the study: the complementary error
 //! function, a first guess of the inverse error function, and quadrature rules (composite
-//! Simpson, Gauss–Legendre).
+//! Simpson, Gauss–Legendre); and in [`elementary`], penumbra's own sine, cosine, exp, ln,
+//! atan2 and acos, which every per-sample caller uses instead of the platform's libm.
+
+mod elementary;
+pub use elementary::{acos, acosf, atan2, atan2f, exp, expf, ln, lnf, sin_cos, sin_cosf};
 
 /// The complementary error function (Chebyshev fit, relative error < 1.2e-7 everywhere).
 pub fn erfc(x: f64) -> f64 {
