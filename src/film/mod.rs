@@ -65,7 +65,7 @@ impl Filter {
             Filter::Gaussian { stddev } => {
                 let a = -0.5 / (stddev * stddev);
                 let r = 4.0 * stddev;
-                ((a * x * x).exp() - (a * r * r).exp()).max(0.0)
+                (crate::math::exp(a * x * x) - crate::math::exp(a * r * r)).max(0.0)
             }
         }
     }
