@@ -687,13 +687,13 @@ mod tests {
     }
 
     /// The figures quoted in the documentation: every f32 of each f32 function's domain
-    /// (minutes in a release build; `cargo test --release --lib elementary::tests::exhaustive
+    /// (minutes in a release build; `cargo test --release --lib elementary::tests::measure_ulp_exhaustive
     /// -- --ignored --nocapture`), and the f64 functions on 10⁸ points each against glibc.
     /// Optionally writes inputs and results for `validation/math/ulp_f64.py`
     /// (PENUMBRA_ULP_DUMP=file).
     #[test]
-    #[ignore]
-    fn exhaustive() {
+    #[ignore = "a measurement, not a test: left out of the full tier (--skip measure_)"]
+    fn measure_ulp_exhaustive() {
         // PENUMBRA_ULP_STRIDE=k: every k-th f32 of exp, ln and acos (default 1: all of them)
         let k = std::env::var("PENUMBRA_ULP_STRIDE").map_or(1, |s| s.parse().unwrap());
         let two_pi = (2.0 * PI) as f32;

@@ -2,7 +2,7 @@
 """Measures the error of penumbra's f64 elementary functions (src/math/elementary.rs) in ulps
 against 50-digit values from mpmath.
 
-    PENUMBRA_ULP_DUMP=samples.txt cargo test --release --lib elementary::tests::exhaustive -- --ignored
+    PENUMBRA_ULP_DUMP=samples.txt cargo test --release --lib elementary::tests::measure_ulp_exhaustive -- --ignored
     python3 validation/math/ulp_f64.py samples.txt
 
 The dump holds one line per sample: the function's name, its arguments and its result, as the
