@@ -419,16 +419,6 @@ fn checkpointed_and_resumed_bit_identical() {
     std::fs::remove_dir_all(&dir).ok();
 }
 
-/// Unpolarised Fresnel reflectance of a smooth interface of relative IOR `eta` at incidence
-/// cosine `cos_i` (from the outside, no total internal reflection), in f64.
-fn fresnel(cos_i: f64, eta: f64) -> f64 {
-    let sin_t2 = (1.0 - cos_i * cos_i) / (eta * eta);
-    let cos_t = (1.0 - sin_t2).sqrt();
-    let rs = (cos_i - eta * cos_t) / (cos_i + eta * cos_t);
-    let rp = (eta * cos_i - cos_t) / (eta * cos_i + cos_t);
-    0.5 * (rs * rs + rp * rp)
-}
-
 /// The camera pass splits the emission seen past a smooth glass surface between its two
 /// lobes instead of picking one. An orthographic camera looks at 45° onto a large glass
 /// plane under a constant sky of radiance L = 2: the reflection sees the sky with weight F,
@@ -442,7 +432,7 @@ fn glass_seen_by_the_camera_is_split_between_its_lobes() {
     // Not 1: a radiance of 1 hides a division by it.
     const SKY: f64 = 2.0;
     let eta = 1.5f64;
-    let f = fresnel(std::f64::consts::FRAC_1_SQRT_2, eta);
+    let f = fresnel_reflectance(std::f64::consts::FRAC_1_SQRT_2, 1.0, eta);
     let slab = f + (1.0 - f).powi(2) * f / (1.0 - f * f);
     let cases = [
         (
