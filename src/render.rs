@@ -230,6 +230,9 @@ fn camera_sample(
     (stream, pos, ray)
 }
 
+/// Renders the samples of one tile and adds them to its film tile in the canonical order
+/// (pixels row by row, samples ascending) on which the image's bits depend: see the film
+/// module's "order of accumulation".
 fn render_tile(
     scene: &Scene,
     integrator: &Integrator,

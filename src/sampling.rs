@@ -18,7 +18,8 @@ pub fn square_to_uniform_disk_concentric(u: Vec2) -> Vec2 {
     } else {
         (o.y, FRAC_PI_2 - FRAC_PI_4 * (o.x / o.y))
     };
-    Vec2::new(r * theta.cos(), r * theta.sin())
+    let (sin, cos) = crate::math::sin_cosf(theta);
+    Vec2::new(r * cos, r * sin)
 }
 
 /// Cosine-weighted hemisphere around +z by Malley's method (project the concentric disk).
@@ -44,8 +45,8 @@ pub fn square_to_cosine_hemisphere_pdf(v: Vec3) -> f32 {
 pub fn square_to_uniform_sphere(u: Vec2) -> Vec3 {
     let z = 1.0 - 2.0 * u.y;
     let r = (1.0 - z * z).max(0.0).sqrt();
-    let phi = 2.0 * PI * u.x;
-    Vec3::new(r * phi.cos(), r * phi.sin(), z)
+    let (sin, cos) = crate::math::sin_cosf(2.0 * PI * u.x);
+    Vec3::new(r * cos, r * sin, z)
 }
 
 /// Uniform barycentrics (b1, b2) on a triangle (Shirley's square-root parameterisation);
@@ -148,8 +149,8 @@ impl Distribution1D {
 pub fn square_to_uniform_cone(u: Vec2, cos_theta_max: f32) -> Vec3 {
     let cos_theta = (1.0 - u.y) + u.y * cos_theta_max;
     let sin_theta = (1.0 - cos_theta * cos_theta).max(0.0).sqrt();
-    let phi = 2.0 * PI * u.x;
-    Vec3::new(sin_theta * phi.cos(), sin_theta * phi.sin(), cos_theta)
+    let (sin_phi, cos_phi) = crate::math::sin_cosf(2.0 * PI * u.x);
+    Vec3::new(sin_theta * cos_phi, sin_theta * sin_phi, cos_theta)
 }
 
 /// Walker's alias method (Walker 1977) with Vose's numerically stable construction (Vose

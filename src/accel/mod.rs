@@ -317,9 +317,35 @@ fn open_children(
     children
 }
 
+/// Whether a hit at `t` on primitive `prim` (of instance `instance`, or [`NO_INSTANCE`])
+/// comes before `best` in the canonical order of hits along a ray: by t, then instance, then
+/// primitive (slot). The closest hit is the least hit in this order, so it is a function of
+/// the ray alone, whatever order a traversal visits the nodes in (issue 42: a packet
+/// traversal must find the hit the single-ray one finds, even between coplanar triangles
+/// at exactly the same t). The tests only report hits below [`bound_after`] the best one's t,
+/// so `t` is at most `best.t` here.
+#[inline(always)]
+fn precedes(t: f32, instance: u32, prim: u32, best: &Option<Hit>) -> bool {
+    match best {
+        None => true,
+        Some(b) => t != b.t || (instance, prim) < (b.instance, b.prim),
+    }
+}
+
+/// The bound the tests of a traversal use once `t` is the best hit: the next f32 above it,
+/// so that a test keeping hits strictly below the bound also reports ties at exactly `t`,
+/// for [`precedes`] to decide. (A hit's t is positive and finite: its successor is one more
+/// in its bits.)
+#[inline(always)]
+fn bound_after(t: f32) -> f32 {
+    f32::from_bits(t.to_bits() + 1)
+}
+
 /// Records the triangle hits of one leaf block (lanes `mask`, with distances `t` and
-/// barycentrics `b1`, `b2`, primitives `slot`): the nearest below `tmax` in `best`, or with
-/// `any` the first one. Returns the new tmax and whether an occlusion query is answered.
+/// barycentrics `b1`, `b2`, primitives `slot`): the least in the order of [`precedes`] into
+/// `best`, or with `any` the first one. Every reported hit lies below `tmax` (the ray's own
+/// bound, or [`bound_after`] the best hit's t). Returns the new bound and whether an
+/// occlusion query is answered.
 #[allow(clippy::too_many_arguments)]
 #[inline(always)]
 fn record_triangle_hits<const N: usize>(
@@ -347,11 +373,11 @@ fn record_triangle_hits<const N: usize>(
     while mask != 0 {
         let lane = mask.trailing_zeros() as usize;
         mask &= mask - 1;
-        if t[lane] < tmax {
-            tmax = t[lane];
+        if t[lane] < tmax && precedes(t[lane], NO_INSTANCE, slot[lane], best) {
+            tmax = bound_after(t[lane]);
             *best = Some(Hit {
                 prim: slot[lane],
-                t: tmax,
+                t: t[lane],
                 b1: b1[lane],
                 b2: b2[lane],
                 instance: NO_INSTANCE,
@@ -646,8 +672,8 @@ impl Accel {
     }
 
     /// Tests the analytic primitives and instances of one leaf block (lanes `mask` of
-    /// `slot`), nearest hit into `best`. Returns the new tmax and whether an occlusion query
-    /// is answered.
+    /// `slot`), the least hit in the order of [`precedes`] into `best`. Returns the new bound
+    /// and whether an occlusion query is answered.
     #[allow(clippy::too_many_arguments)]
     #[inline(always)]
     fn test_analytic_lanes(
@@ -664,10 +690,13 @@ impl Accel {
             let lane = mask.trailing_zeros() as usize;
             mask &= mask - 1;
             if let Some(hit) = self.test_analytic(slot[lane], ray, tmax, shapes, any) {
-                tmax = hit.t;
-                *best = Some(hit);
                 if any {
+                    *best = Some(hit);
                     return (tmax, true);
+                }
+                if precedes(hit.t, hit.instance, hit.prim, best) {
+                    tmax = bound_after(hit.t);
+                    *best = Some(hit);
                 }
             }
         }
@@ -919,6 +948,134 @@ mod tests {
             }
         }
         best
+    }
+
+    /// Brute force in the canonical order: the least (t, slot) over every primitive slot of
+    /// `accel` (triangles and analytic shapes).
+    fn brute_force_canonical(accel: &Accel, shapes: &[Shape], ray: &Ray) -> Option<(f32, u32)> {
+        let shear = RayShear::new(ray.o, ray.d);
+        let mut best: Option<(f32, u32)> = None;
+        for (slot, prim) in accel.prims.iter().enumerate() {
+            let t = match *prim {
+                Primitive::Triangle { shape, index } => match &shapes[shape as usize].geometry {
+                    ShapeGeometry::Mesh(m) => {
+                        intersect_triangle(&shear, &m.vertices(index as usize), ray.tmax)
+                            .map(|h| h.0)
+                    }
+                    _ => None,
+                },
+                Primitive::Analytic { shape } => shapes[shape as usize].geometry.intersect(ray),
+                Primitive::Instance { .. } => None,
+            };
+            if let Some(t) = t {
+                let key = (t, slot as u32);
+                if best.is_none_or(|b| key < b) {
+                    best = Some(key);
+                }
+            }
+        }
+        best
+    }
+
+    /// Coplanar, overlapping triangles hit at exactly the same t: the closest hit is the
+    /// least (t, primitive slot), whichever order the triangles were inserted in and
+    /// whichever order the traversal visits their leaves. Scenes: two triangles of one plane,
+    /// one a shifted copy of the other, inserted in both orders; 24 identical triangles
+    /// (three 8-wide leaf blocks, equal boxes: the visit order is the traversal's alone); 24
+    /// triangles of one plane at random offsets (ties where their t rounds alike), with a
+    /// sphere touching the plane. Both layouts.
+    #[test]
+    fn ties_resolve_by_primitive_slot() {
+        let mut rng = rand_pcg::Pcg32::seed_from_u64(42);
+        let tri = |c: Vec3| {
+            [
+                c + Vec3::new(-1.0, -1.0, 0.0),
+                c + Vec3::new(1.5, -1.0, 0.0),
+                c + Vec3::new(-1.0, 1.5, 0.0),
+            ]
+        };
+        let mesh = |tris: Vec<[Vec3; 3]>| {
+            let n = tris.len() as u32;
+            shape(ShapeGeometry::Mesh(Mesh::new(
+                tris.concat(),
+                None,
+                None,
+                (0..n).map(|i| [3 * i, 3 * i + 1, 3 * i + 2]).collect(),
+                false,
+            )))
+        };
+        let (a, b) = (tri(Vec3::new(0.0, 0.0, 1.0)), tri(Vec3::new(0.3, 0.2, 1.0)));
+        let scattered: Vec<[Vec3; 3]> = (0..24)
+            .map(|_| {
+                tri(Vec3::new(
+                    rng.random_range(-0.5..0.5),
+                    rng.random_range(-0.5..0.5),
+                    1.0,
+                ))
+            })
+            .collect();
+        let scenes = [
+            vec![mesh(vec![a, b])],
+            vec![mesh(vec![b, a])],
+            vec![mesh(vec![a]), mesh(vec![b])],
+            vec![mesh(vec![b]), mesh(vec![a])],
+            vec![mesh(vec![a; 24])],
+            vec![
+                mesh(scattered),
+                shape(ShapeGeometry::Sphere(Sphere::new(
+                    DVec3::new(0.0, 0.0, 1.5),
+                    0.5,
+                    false,
+                ))),
+            ],
+        ];
+        for layout in [Layout::Wide4, Layout::Wide8] {
+            for (k, shapes) in scenes.iter().enumerate() {
+                let accel = Accel::build_with_layout(shapes, layout);
+                let mut ties = 0;
+                for i in 0..4000 {
+                    let o = Vec3::new(
+                        rng.random_range(-3.0..3.0),
+                        rng.random_range(-3.0..3.0),
+                        rng.random_range(-3.0..0.0),
+                    );
+                    let target = Vec3::new(
+                        rng.random_range(-0.6..0.6),
+                        rng.random_range(-0.6..0.6),
+                        1.0,
+                    );
+                    let ray = Ray::new(o, target - o, f32::INFINITY);
+                    let want = brute_force_canonical(&accel, shapes, &ray);
+                    let got = accel.intersect(&ray, shapes).map(|h| (h.t, h.prim));
+                    assert_eq!(got, want, "{layout:?} scene {k} ray {i}");
+                    // rays with a second primitive at exactly the closest t
+                    let shear = RayShear::new(ray.o, ray.d);
+                    let at_best = accel
+                        .prims
+                        .iter()
+                        .filter(|p| match **p {
+                            Primitive::Triangle { shape, index } => {
+                                match &shapes[shape as usize].geometry {
+                                    ShapeGeometry::Mesh(m) => intersect_triangle(
+                                        &shear,
+                                        &m.vertices(index as usize),
+                                        ray.tmax,
+                                    )
+                                    .is_some_and(|h| Some(h.0) == want.map(|w| w.0)),
+                                    _ => false,
+                                }
+                            }
+                            _ => false,
+                        })
+                        .count();
+                    ties += (at_best > 1) as u32;
+                }
+                assert!(
+                    ties > 100,
+                    "{layout:?} scene {k}: only {ties} rays with a tie"
+                );
+            }
+        }
     }
 
     fn shape(geometry: ShapeGeometry) -> Shape {
