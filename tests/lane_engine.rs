@@ -2,8 +2,8 @@
 //! for bit, and the same path counters, on every lane backend this processor runs (avx512,
 //! avx2, portable, and the width-1 scalar instance) at 1 and 2 threads, on the Cornell box,
 //! an environment-map scene, a textured scene, a thin-lens camera, a wild scene, the crop
-//! window with `sample_border`, hidden emitters, `max_depth` 0 and 1, and structured
-//! samplers; plus the CLI: `penumbra compare` gives RMSE 0 between `--engine scalar` and
+//! window with `sample_border`, hidden emitters, `max_depth` 0 and 1, structured samplers,
+//! and a scene with every kind of light the emitter kernels handle; plus the CLI: `penumbra compare` gives RMSE 0 between `--engine scalar` and
 //! `--engine lanes`, the summary line names the engine, and integrators the lane engine
 //! does not cover fall back to the scalar engine and say so.
 
@@ -146,6 +146,24 @@ fn envmap_textures_thinlens() {
         let job = load(scene, &[("res", "20")], |_| {});
         assert!(lit(&job), "{scene}");
         check(scene, &job, 4, None);
+    }
+}
+
+/// The emitter-sampling, shadow-ray and offset kernels (step 3a) on every path they take:
+/// mesh lights with and without vertex normals, a sphere light (scalar lane by lane), a
+/// point light, an environment, several emitters in one packet, and the pick by
+/// `sampling_weight`.
+#[test]
+fn emitter_kernels_on_every_kind_of_light() {
+    for weight in ["1", "3"] {
+        let job = load(
+            "tests/data/lanes-emitters.xml",
+            &[("res", "20"), ("weight", weight)],
+            |_| {},
+        );
+        assert_eq!(job.scene.emitters.len(), 5);
+        assert!(lit(&job));
+        check(&format!("lanes-emitters, weight {weight}"), &job, 4, None);
     }
 }
 

@@ -127,6 +127,13 @@ pub trait LaneF32:
     fn min_lt(self, o: Self) -> Self;
     /// `if self > o { self } else { o }` (glam's `Vec3::max` and `max_element`).
     fn max_gt(self, o: Self) -> Self;
+    /// `f32::clamp` where `lo <= hi`: `if x < lo { lo }`, then `if x > hi { hi }` (NaN stays
+    /// NaN; −0 stays −0 against a bound of +0).
+    #[inline(always)]
+    fn clamp(self, lo: Self, hi: Self) -> Self {
+        let x = Self::select(self.cmp_lt(lo), lo, self);
+        Self::select(x.cmp_gt(hi), hi, x)
+    }
 
     /// `==` (false where either is NaN).
     fn cmp_eq(self, o: Self) -> Self::M;
@@ -265,6 +272,88 @@ fn gather_bound(len: usize) -> u32 {
 #[inline(never)]
 fn gather_out_of_bounds(len: usize) -> ! {
     panic!("lane gather: an active lane's index is out of bounds for a table of {len}")
+}
+
+/// Runs `f` on every set lane of `m`, lowest first: the per-lane part of a kernel (what is
+/// not ported yet, or is mostly scattered loads). On the width-1 backend it is one `if`.
+#[inline(always)]
+pub fn for_each_lane<M: LaneMask>(width: usize, m: M, mut f: impl FnMut(usize)) {
+    if width == 1 {
+        if m.any() {
+            f(0);
+        }
+        return;
+    }
+    let mut bits = m.bits();
+    while bits != 0 {
+        f(bits.trailing_zeros() as usize);
+        bits &= bits - 1;
+    }
+}
+
+/// Runs `f(v, mv)` once per distinct value `v` of `idx` among the set lanes of `m`, with
+/// `mv` the lanes of `m` holding it, in the order of their lowest lane: dynamic dispatch as
+/// a masked loop over what the lanes hold (one pass where they agree).
+#[inline(always)]
+pub fn for_each_distinct<L: Lanes>(l: L, idx: L::U32, m: L::M, mut f: impl FnMut(u32, L::M)) {
+    if L::WIDTH == 1 {
+        if m.any() {
+            f(idx.lane(0), m);
+        }
+        return;
+    }
+    let mut rest = m;
+    while rest.any() {
+        let v = idx.lane(rest.bits().trailing_zeros() as usize);
+        let mv = rest & idx.cmp_eq(l.splat_u32(v));
+        f(v, mv);
+        rest = rest.and_not(mv);
+    }
+}
+
+/// `table[idx]` lane by lane where `m` is set, else zero: three gathers of a vertex table.
+/// Panics, as [`Lanes::gather`] does, where an active lane's row is out of the table.
+#[inline(always)]
+pub fn gather_vec3<L: Lanes>(l: L, table: &[glam::Vec3], idx: L::U32, m: L::M) -> V3<L::F> {
+    let mut out = V3::splat(l.splat(0.0));
+    if L::WIDTH == 1 {
+        // The width-1 instance: one row load, as scalar code indexes a `Vec<Vec3>`.
+        if m.any() {
+            out.set_lane(0, table[idx.lane(0) as usize]);
+        }
+        return out;
+    }
+    let flat: &[f32] = bytemuck::cast_slice(table);
+    // (a row index from 2³² / 3 on would wrap: no table holds that many rows, see the bound
+    // of `gather`, which panics from 2³¹ entries on)
+    let base = idx.wrapping_mul(l.splat_u32(3));
+    let one = l.splat_u32(1);
+    let two = l.splat_u32(2);
+    out.x = l.gather(flat, base, m);
+    out.y = l.gather(flat, base.wrapping_add(one), m);
+    out.z = l.gather(flat, base.wrapping_add(two), m);
+    out
+}
+
+/// `table[idx]` of a table of index triples, lane by lane where `m` is set, else zeros.
+#[inline(always)]
+pub fn gather_u32x3<L: Lanes>(l: L, table: &[[u32; 3]], idx: L::U32, m: L::M) -> [L::U32; 3] {
+    let mut out = [l.splat_u32(0); 3];
+    if L::WIDTH == 1 {
+        if m.any() {
+            let row = table[idx.lane(0) as usize];
+            for (o, v) in out.iter_mut().zip(row) {
+                o.set_lane(0, v);
+            }
+        }
+        return out;
+    }
+    let flat: &[u32] = table.as_flattened();
+    let base = idx.wrapping_mul(l.splat_u32(3));
+    for (k, o) in out.iter_mut().enumerate() {
+        *o = l.gather_u32(flat, base.wrapping_add(l.splat_u32(k as u32)), m);
+    }
+    out
 }
 
 /// The backends, by name.

@@ -34,6 +34,8 @@ enum Op {
     MinLt,
     MaxGt,
     Copysign,
+    // (f32, f32, f32) → f32
+    Clamp,
     // → mask
     Eq,
     Ne,
@@ -110,6 +112,7 @@ enum Op {
     VCross,
     VLength,
     VNormalize,
+    VNormalizeOrZero,
     VMin,
     VMax,
     VMaxElement,
@@ -144,6 +147,7 @@ const OPS: &[Op] = &[
     Op::MinLt,
     Op::MaxGt,
     Op::Copysign,
+    Op::Clamp,
     Op::Eq,
     Op::Ne,
     Op::Lt,
@@ -213,6 +217,7 @@ const OPS: &[Op] = &[
     Op::VCross,
     Op::VLength,
     Op::VNormalize,
+    Op::VNormalizeOrZero,
     Op::VMin,
     Op::VMax,
     Op::VMaxElement,
@@ -522,6 +527,20 @@ fn reference(op: Op, inp: &Inputs, w: usize) -> Out {
                         Op::MinLt => fb(if f(0, i) < f(1, i) { f(0, i) } else { f(1, i) }),
                         Op::MaxGt => fb(if f(0, i) > f(1, i) { f(0, i) } else { f(1, i) }),
                         Op::Copysign => fb(f(0, i).copysign(f(1, i))),
+                        Op::Clamp => fb({
+                            let (x, lo, hi) = (f(0, i), f(1, i), f(2, i));
+                            if lo <= hi {
+                                x.clamp(lo, hi)
+                            } else {
+                                // (f32::clamp panics on these bounds; the lanes keep its rule)
+                                let x = if x < lo { lo } else { x };
+                                if x > hi {
+                                    hi
+                                } else {
+                                    x
+                                }
+                            }
+                        }),
                         Op::Eq => bb(f(0, i) == f(1, i)),
                         Op::Ne => bb(f(0, i) != f(1, i)),
                         Op::Lt => bb(f(0, i) < f(1, i)),
@@ -587,6 +606,7 @@ fn reference(op: Op, inp: &Inputs, w: usize) -> Out {
                         Op::VCross => vb(va(i).cross(vbv(i))),
                         Op::VLength => fb(va(i).length()),
                         Op::VNormalize => vb(va(i) * (1.0 / va(i).length())),
+                        Op::VNormalizeOrZero => vb(va(i).normalize_or_zero()),
                         Op::VMin => vb(va(i).min(vbv(i))),
                         Op::VMax => vb(va(i).max(vbv(i))),
                         Op::VMaxElement => fb(va(i).max_element()),
@@ -699,6 +719,7 @@ fn lanes_of<L: Lanes>(l: L, op: Op, inp: &Inputs) -> Out {
             Op::MinLt => put_f(out, fa(0).min_lt(fa(1))),
             Op::MaxGt => put_f(out, fa(0).max_gt(fa(1))),
             Op::Copysign => put_f(out, fa(0).copysign(fa(1))),
+            Op::Clamp => put_f(out, fa(0).clamp(fa(1), fa(2))),
             Op::Eq => put_m(out, fa(0).cmp_eq(fa(1))),
             Op::Ne => put_m(out, fa(0).cmp_ne(fa(1))),
             Op::Lt => put_m(out, fa(0).cmp_lt(fa(1))),
@@ -773,6 +794,7 @@ fn lanes_of<L: Lanes>(l: L, op: Op, inp: &Inputs) -> Out {
             Op::VCross => put_v(out, v(0).cross(v(3))),
             Op::VLength => put_f(out, v(0).length()),
             Op::VNormalize => put_v(out, v(0).normalize(l.splat(1.0))),
+            Op::VNormalizeOrZero => put_v(out, v(0).normalize_or_zero(l.splat(1.0), l.splat(0.0))),
             Op::VMin => put_v(out, v(0).min(v(3))),
             Op::VMax => put_v(out, v(0).max(v(3))),
             Op::VMaxElement => put_f(out, v(0).max_element()),
@@ -817,6 +839,7 @@ fn arithmetic(op: Op) -> bool {
             | VCross
             | VLength
             | VNormalize
+            | VNormalizeOrZero
             | VAdd
             | VSub
             | VMul

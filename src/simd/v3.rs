@@ -83,6 +83,15 @@ impl<F: LaneF32> V3<F> {
         self * (one / self.length())
     }
 
+    /// glam's `normalize_or_zero`: v · r with r = 1 / length where r is finite and positive,
+    /// else zero.
+    #[inline(always)]
+    pub fn normalize_or_zero(self, one: F, zero: F) -> Self {
+        let rcp = one / self.length();
+        let ok = rcp.is_finite() & rcp.cmp_gt(zero);
+        V3::select(ok, self * rcp, V3::splat(zero))
+    }
+
     #[inline(always)]
     pub fn abs(self) -> Self {
         V3 {
@@ -134,6 +143,21 @@ impl<F: LaneF32> V3<F> {
     #[inline(always)]
     pub fn is_finite(self) -> F::M {
         self.x.is_finite() & self.y.is_finite() & self.z.is_finite()
+    }
+}
+
+/// The width-1 instance is glam's vector, component by component.
+impl From<Vec3> for V3<f32> {
+    #[inline(always)]
+    fn from(v: Vec3) -> Self {
+        V3::new(v.x, v.y, v.z)
+    }
+}
+
+impl From<V3<f32>> for Vec3 {
+    #[inline(always)]
+    fn from(v: V3<f32>) -> Self {
+        Vec3::new(v.x, v.y, v.z)
     }
 }
 

@@ -11,9 +11,12 @@
 //! of order, so each tile's results are kept per sample and added to the film in the scalar
 //! engine's order when the tile is done (pixel by pixel, samples ascending).
 //!
-//! This is the engine's first step: the loop, the state and the refill. Every kernel
-//! (intersection, emission, emitter sampling, BSDF) is still the scalar code, called lane
-//! by lane, so later steps can port one kernel at a time to lane operations.
+//! Kernels are ported one at a time (the design note's step 3): the scatter step
+//! ([`crate::integrator::path::PathIntegrator::scatter_lanes`]) runs emitter sampling, the
+//! shadow rays, the ray-origin offsets, MIS and the roulette's arithmetic as lane kernels,
+//! written once over [`crate::simd::Lanes`], whose width-1 instance is the scalar engine's
+//! code. The rest (intersection, emission, the BSDFs, the sample draws) is still the scalar
+//! code, called lane by lane.
 
 pub mod path;
 

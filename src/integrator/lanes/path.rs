@@ -6,25 +6,25 @@
 //! 2. intersect every active lane's ray;
 //! 3. at each hit, the emission and whether the path goes on ([`PathIntegrator::escape`],
 //!    [`PathIntegrator::at_surface`]);
-//! 4. at each lane that goes on, next-event estimation, BSDF sampling and Russian roulette
-//!    ([`PathIntegrator::scatter`]);
+//! 4. at the lanes that go on, next-event estimation, BSDF sampling and Russian roulette
+//!    ([`PathIntegrator::scatter_lanes`], whose lane kernels run on all of them at once);
 //!
 //! and a lane whose path ended writes its result into the tile's slot for its sample.
-//! The path state lives in lanes (structure of arrays); each step is, for now, the scalar
-//! code called lane by lane on the state moved out of and back into the lanes.
+//! The path state lives in lanes ([`PathLanes`]); steps 2 and 3 are the scalar code called
+//! lane by lane on the state moved out of and back into the lanes.
 
 use super::LaneStats;
 use crate::geometry::Ray;
-use crate::integrator::path::{PathIntegrator, PathState, SurfaceStep};
+use crate::integrator::path::{PathIntegrator, PathLanes, SurfaceStep};
 use crate::integrator::PathStats;
 use crate::material::ShadingBsdf;
 use crate::sampler::SampleStream;
 use crate::scene::Scene;
-use crate::shape::SurfaceInteraction;
+use crate::shape::{SurfaceInteraction, SurfaceLanes};
 use crate::simd::MAX_WIDTH;
 use crate::simd::{dispatch, Backend, LaneF32, LaneMask, LaneProgram, LaneU32, Lanes, V3};
 use crate::spectrum::Spectrum;
-use glam::{Vec2, Vec3};
+use glam::Vec2;
 
 /// One camera sample: its sample stream (past the camera's dimensions), its film position
 /// in pixels, and its ray.
@@ -77,23 +77,13 @@ impl LaneProgram for TileProgram<'_, '_> {
     }
 }
 
-/// The paths in the lanes: [`PathState`] in structure-of-arrays form, plus what the lane
-/// engine keeps per lane (its sample's slot and film position, its sample stream, the
-/// direction to the previous vertex between the emission and scatter steps).
+/// The paths in the lanes ([`PathLanes`]), plus what the lane engine keeps per lane (its
+/// sample's slot and film position, its sample stream, the direction to the previous vertex
+/// between the emission and scatter steps).
 struct Paths<L: Lanes> {
     l: L,
     active: L::M,
-    ray_o: V3<L::F>,
-    ray_d: V3<L::F>,
-    ray_tmax: L::F,
-    throughput: V3<L::F>,
-    result: V3<L::F>,
-    eta: L::F,
-    depth: L::U32,
-    prev_p: V3<L::F>,
-    prev_bsdf_pdf: L::F,
-    /// 1 where the previous bounce was delta-sampled.
-    prev_delta: L::U32,
+    st: PathLanes<L>,
     wi_world: V3<L::F>,
     /// The sample's index in the tile's queue.
     slot: L::U32,
@@ -106,69 +96,16 @@ impl<L: Lanes> Paths<L> {
     #[inline(always)]
     fn new(l: L) -> Self {
         let zero = l.splat(0.0);
-        let v0 = V3::splat(zero);
         Paths {
             l,
             active: l.mask(0),
-            ray_o: v0,
-            ray_d: v0,
-            ray_tmax: zero,
-            throughput: v0,
-            result: v0,
-            eta: zero,
-            depth: l.splat_u32(0),
-            prev_p: v0,
-            prev_bsdf_pdf: zero,
-            prev_delta: l.splat_u32(0),
-            wi_world: v0,
+            st: PathLanes::zero(l),
+            wi_world: V3::splat(zero),
             slot: l.splat_u32(0),
             film_x: zero,
             film_y: zero,
             samplers: std::array::from_fn(|_| SampleStream::new(0, 0, 0)),
         }
-    }
-
-    /// Lane `i`'s path, out of the lanes.
-    #[inline(always)]
-    fn get(&self, i: usize) -> PathState {
-        PathState {
-            ray: Ray::new(
-                self.ray_o.lane(i),
-                self.ray_d.lane(i),
-                self.ray_tmax.lane(i),
-            ),
-            throughput: self.throughput.lane(i),
-            result: self.result.lane(i),
-            eta: self.eta.lane(i),
-            depth: self.depth.lane(i),
-            prev_p: self.prev_p.lane(i),
-            prev_bsdf_pdf: self.prev_bsdf_pdf.lane(i),
-            prev_delta: self.prev_delta.lane(i) != 0,
-        }
-    }
-
-    /// Lane `i`'s path, back into the lanes.
-    #[inline(always)]
-    fn put(&mut self, i: usize, st: &PathState) {
-        self.ray_o.set_lane(i, st.ray.o);
-        self.ray_d.set_lane(i, st.ray.d);
-        self.ray_tmax.set_lane(i, st.ray.tmax);
-        self.throughput.set_lane(i, st.throughput);
-        self.result.set_lane(i, st.result);
-        self.eta.set_lane(i, st.eta);
-        self.depth.set_lane(i, st.depth);
-        self.prev_p.set_lane(i, st.prev_p);
-        self.prev_bsdf_pdf.set_lane(i, st.prev_bsdf_pdf);
-        self.prev_delta.set_lane(i, st.prev_delta as u32);
-    }
-
-    #[inline(always)]
-    fn ray(&self, i: usize) -> Ray {
-        Ray::new(
-            self.ray_o.lane(i),
-            self.ray_d.lane(i),
-            self.ray_tmax.lane(i),
-        )
     }
 
     /// Lane `i`'s path has ended with `result`: its sample's slot gets it, the lane is free.
@@ -211,8 +148,10 @@ fn trace_queue<L: Lanes>(
     let mut p = Paths::new(l);
     // What each lane's ray hit, between the intersection and the later steps.
     let mut hits: [Option<SurfaceInteraction>; MAX_WIDTH] = [None; MAX_WIDTH];
-    // Filled in place where the material varies (see `Scene::bsdf_at`).
-    let mut bsdf_buf = ShadingBsdf::new();
+    // Where the lanes' materials vary, their BSDFs, filled in place (see `Scene::bsdf_at`).
+    let mut bsdf_bufs = vec![ShadingBsdf::new(); width];
+    // What the lane kernels read of the hits of the lanes that scatter.
+    let mut geo = SurfaceLanes::zero(l);
     let mut next = 0usize;
     counters.width = width as u64;
     loop {
@@ -228,7 +167,7 @@ fn trace_queue<L: Lanes>(
                 out[q] = (pos, Spectrum::ZERO);
                 continue;
             };
-            p.put(i, &st);
+            p.st.put(l, i, &st);
             p.samplers[i] = sampler;
             p.slot.set_lane(i, q as u32);
             p.film_x.set_lane(i, pos.x);
@@ -245,59 +184,59 @@ fn trace_queue<L: Lanes>(
         counters.traced += n as u64;
         counters.by_active[n as usize] += 1;
         for i in lanes_of(active) {
-            let d = (p.depth.lane(i) as usize).min(LaneStats::DEPTHS - 1);
+            let d = (p.st.depth.lane(i) as usize).min(LaneStats::DEPTHS - 1);
             counters.by_depth[d] += 1;
         }
 
         // 2. Intersect.
         for i in lanes_of(active) {
             stats.rays += 1;
-            hits[i] = scene.intersect(&p.ray(i));
+            hits[i] = scene.intersect(&p.st.ray.lane(i));
         }
 
         // 3. Emission where the rays ended; which paths go on.
         let mut scatter = 0u32;
         for i in lanes_of(active) {
-            let mut st = p.get(i);
+            let mut st = p.st.get(i);
             match &hits[i] {
                 None => {
                     path.escape(scene, &mut st);
-                    p.finish(i, st.result, out);
+                    p.finish(i, st.result.into(), out);
                 }
                 Some(si) => match path.at_surface(scene, &mut st, si) {
-                    SurfaceStep::End => p.finish(i, st.result, out),
-                    SurfaceStep::Trace => p.put(i, &st),
+                    SurfaceStep::End => p.finish(i, st.result.into(), out),
+                    SurfaceStep::Trace => p.st.put(l, i, &st),
                     SurfaceStep::Scatter { wi_world } => {
-                        p.put(i, &st);
+                        p.st.put(l, i, &st);
                         p.wi_world.set_lane(i, wi_world);
                         scatter |= 1 << i;
+                        geo.set_lane(i, si);
                     }
                 },
             }
         }
         counters.scattered += scatter.count_ones() as u64;
+        if scatter == 0 {
+            continue;
+        }
 
         // 4. Next-event estimation, BSDF sampling, Russian roulette.
-        for i in lanes_of(scatter) {
-            let Some(si) = &hits[i] else {
-                continue;
-            };
-            let mut st = p.get(i);
-            let wi_world: Vec3 = p.wi_world.lane(i);
-            let go = path.scatter(
-                scene,
-                &mut st,
-                si,
-                wi_world,
-                &mut p.samplers[i],
-                stats,
-                &mut bsdf_buf,
-            );
-            if go {
-                p.put(i, &st);
-            } else {
-                p.finish(i, st.result, out);
-            }
+        let scatter = l.mask(scatter);
+        let go = path.scatter_lanes(
+            l,
+            scene,
+            &mut p.st,
+            scatter,
+            #[inline(always)]
+            |i| hits[i].as_ref().expect("a scattering lane has a hit"),
+            &geo,
+            p.wi_world,
+            &mut p.samplers,
+            stats,
+            &mut bsdf_bufs,
+        );
+        for i in lanes_of(scatter.and_not(go).bits()) {
+            p.finish(i, p.st.result.lane(i), out);
         }
     }
 }
