@@ -7,6 +7,7 @@
 //! never a fixed epsilon, so the same scene renders alike at any scale or distance from the
 //! origin. Shadow rays end short of their target by the relative margin [`SHADOW_EPSILON`].
 
+use crate::simd::{LaneF32, LaneMask, LaneU32, Lanes, Scalar, V3};
 use glam::Vec3;
 
 /// Half an ULP of 1.0 in f32: the unit roundoff of IEEE-754 single precision.
@@ -58,25 +59,107 @@ impl Ray {
     }
 }
 
-/// Moves `p`, whose coordinates carry absolute error at most `p_error`, off the surface with
-/// geometric normal `n` to the side that `w` points to, so that a ray leaving in direction `w`
-/// cannot re-intersect the surface it starts on.
-#[inline]
-pub fn offset_ray_origin(p: Vec3, p_error: Vec3, n: Vec3, w: Vec3) -> Vec3 {
-    let d = n.abs().dot(p_error);
-    let mut offset = n * d;
-    if w.dot(n) < 0.0 {
-        offset = -offset;
+/// Rays in lanes ([`Ray`] per lane).
+#[derive(Clone, Copy, Debug)]
+pub struct Rays<L: Lanes> {
+    pub o: V3<L::F>,
+    pub d: V3<L::F>,
+    pub tmax: L::F,
+}
+
+impl<L: Lanes> Rays<L> {
+    /// Lane `i`'s ray.
+    #[inline(always)]
+    pub fn lane(&self, i: usize) -> Ray {
+        Ray::new(self.o.lane(i), self.d.lane(i), self.tmax.lane(i))
     }
-    let mut po = p + offset;
-    for i in 0..3 {
-        if offset[i] > 0.0 {
-            po[i] = next_float_up(po[i]);
-        } else if offset[i] < 0.0 {
-            po[i] = next_float_down(po[i]);
+}
+
+impl From<Ray> for Rays<Scalar> {
+    #[inline(always)]
+    fn from(r: Ray) -> Rays<Scalar> {
+        Rays {
+            o: r.o.into(),
+            d: r.d.into(),
+            tmax: r.tmax,
         }
     }
-    po
+}
+
+impl From<Rays<Scalar>> for Ray {
+    #[inline(always)]
+    fn from(r: Rays<Scalar>) -> Ray {
+        Ray::new(r.o.into(), r.d.into(), r.tmax)
+    }
+}
+
+/// Moves `p`, whose coordinates carry absolute error at most `p_error`, off the surface with
+/// geometric normal `n` to the side that `w` points to, so that a ray leaving in direction `w`
+/// cannot re-intersect the surface it starts on. The width-1 instance of
+/// [`offset_ray_origin_lanes`].
+#[inline]
+pub fn offset_ray_origin(p: Vec3, p_error: Vec3, n: Vec3, w: Vec3) -> Vec3 {
+    offset_ray_origin_lanes(Scalar, p.into(), p_error.into(), n.into(), w.into()).into()
+}
+
+/// [`offset_ray_origin`] lane by lane, written once for every lane backend (issue 42): the
+/// offset n · (|n| · p_error), negated where w · n < 0, added to `p`, and each coordinate
+/// then stepped one ULP further in the direction of its offset ([`next_float_up`] or
+/// [`next_float_down`]; unchanged where the offset is 0 or NaN).
+#[inline(always)]
+pub fn offset_ray_origin_lanes<L: Lanes>(
+    l: L,
+    p: V3<L::F>,
+    p_error: V3<L::F>,
+    n: V3<L::F>,
+    w: V3<L::F>,
+) -> V3<L::F> {
+    let d = n.abs().dot(p_error);
+    // −(n d) = n (−d) bit for bit (a product's sign is the sign of its factors' product,
+    // its magnitude rounded alike): one select, not three.
+    let flip = w.dot(n).cmp_lt(l.splat(0.0));
+    let offset = n * L::F::select(flip, -d, d);
+    let po = p + offset;
+    V3::new(
+        step_away(l, po.x, offset.x),
+        step_away(l, po.y, offset.y),
+        step_away(l, po.z, offset.z),
+    )
+}
+
+/// `x` stepped one ULP up where `offset > 0`, down where `offset < 0`, else unchanged: the
+/// per-coordinate rounding of [`offset_ray_origin`]. A step down is −next_float_up(−x), as
+/// [`next_float_down`] is.
+#[inline(always)]
+fn step_away<L: Lanes>(l: L, x: L::F, offset: L::F) -> L::F {
+    let zero = l.splat(0.0);
+    let up = offset.cmp_gt(zero);
+    let down = offset.cmp_lt(zero);
+    let moved = up | down;
+    if !moved.any() {
+        return x;
+    }
+    let s = L::F::select(down, -x, x);
+    let r = next_float_up_lanes(l, s);
+    let r = L::F::select(down, -r, r);
+    L::F::select(moved, r, x)
+}
+
+/// [`next_float_up`] lane by lane.
+#[inline(always)]
+pub fn next_float_up_lanes<L: Lanes>(l: L, v: L::F) -> L::F {
+    let zero = l.splat(0.0);
+    let keep = v.cmp_eq(l.splat(f32::INFINITY)) | v.is_nan();
+    // ±0 both step from +0
+    let v0 = L::F::select(v.cmp_eq(zero), zero, v);
+    let bits = v0.to_bits();
+    let one = l.splat_u32(1);
+    let stepped = L::U32::select(
+        v0.cmp_ge(zero),
+        bits.wrapping_add(one),
+        bits.wrapping_sub(one),
+    );
+    L::F::select(keep, v, L::F::from_bits(stepped))
 }
 
 /// Mitsuba's `coordinate_system` in f64: two unit vectors completing the unit vector `n` to a
@@ -187,5 +270,160 @@ mod tests {
         let down = offset_ray_origin(p, err, n, Vec3::new(0.1, -1.0, 0.0));
         assert!(up.y > p.y + 1e-3 && down.y < p.y - 1e-3);
         assert_eq!(up.x, p.x);
+    }
+
+    /// The scalar offset as it was before the lane kernel (issue 42, step 3a): the oracle
+    /// that [`offset_ray_origin_lanes`] must reproduce bit for bit on every backend.
+    fn offset_reference(p: Vec3, p_error: Vec3, n: Vec3, w: Vec3) -> Vec3 {
+        let d = n.abs().dot(p_error);
+        let mut offset = n * d;
+        if w.dot(n) < 0.0 {
+            offset = -offset;
+        }
+        let mut po = p + offset;
+        for i in 0..3 {
+            if offset[i] > 0.0 {
+                po[i] = next_float_up(po[i]);
+            } else if offset[i] < 0.0 {
+                po[i] = next_float_down(po[i]);
+            }
+        }
+        po
+    }
+
+    /// Same bits, or NaN where the reference is NaN (a computed NaN's payload is not
+    /// specified, see `simd`).
+    fn same(a: f32, b: f32) -> bool {
+        a.to_bits() == b.to_bits() || a.is_nan() && b.is_nan()
+    }
+
+    /// Random offset inputs with the edges: axis-aligned normals (exact zeros in the
+    /// offset), ±0 coordinates, directions perpendicular to the normal (w · n = 0),
+    /// subnormals, huge and infinite coordinates, NaNs, zero error bounds.
+    fn offset_cases() -> Vec<[Vec3; 4]> {
+        use rand::{RngExt, SeedableRng};
+        let mut rng = rand_pcg::Pcg32::seed_from_u64(0x0ff5e7);
+        let special = [
+            0.0,
+            -0.0,
+            1.0,
+            -1.0,
+            1e-40,
+            -1e-40,
+            f32::MIN_POSITIVE,
+            3.0e38,
+            -3.0e38,
+            f32::MAX,
+            f32::INFINITY,
+            f32::NEG_INFINITY,
+            f32::NAN,
+            16777216.0,
+            -0.5,
+        ];
+        let x = |rng: &mut rand_pcg::Pcg32| match rng.random_range(0..5) {
+            0 => special[rng.random_range(0..special.len())],
+            1 => rng.random_range(-1e4f32..1e4),
+            2 => rng.random_range(-1.0f32..1.0) * 1e-30,
+            _ => rng.random_range(-2.0f32..2.0),
+        };
+        let axes = [Vec3::X, Vec3::Y, Vec3::Z, -Vec3::X, -Vec3::Y, -Vec3::Z];
+        (0..16 * 4096)
+            .map(|_| {
+                let p = Vec3::new(x(&mut rng), x(&mut rng), x(&mut rng));
+                let e = Vec3::new(x(&mut rng), x(&mut rng), x(&mut rng)).abs()
+                    * if rng.random_range(0..4) == 0 {
+                        0.0
+                    } else {
+                        1e-6
+                    };
+                let n = match rng.random_range(0..4) {
+                    0 => axes[rng.random_range(0..6)],
+                    1 => Vec3::new(x(&mut rng), x(&mut rng), x(&mut rng)),
+                    _ => Vec3::new(
+                        rng.random_range(-1.0f32..1.0),
+                        rng.random_range(-1.0f32..1.0),
+                        rng.random_range(-1.0f32..1.0),
+                    )
+                    .normalize_or_zero(),
+                };
+                let w = match rng.random_range(0..4) {
+                    // perpendicular: w · n = 0 exactly for axis-aligned n
+                    0 => n.any_orthogonal_vector(),
+                    1 => -n,
+                    _ => Vec3::new(x(&mut rng), x(&mut rng), x(&mut rng)),
+                };
+                [p, e, n, w]
+            })
+            .collect()
+    }
+
+    struct OffsetProgram<'a>(&'a [[Vec3; 4]]);
+
+    impl crate::simd::LaneProgram for OffsetProgram<'_> {
+        type Output = Vec<Vec3>;
+        #[inline(always)]
+        fn run<L: Lanes>(self, l: L) -> Vec<Vec3> {
+            let mut out = Vec::with_capacity(self.0.len());
+            for chunk in self.0.chunks(L::WIDTH) {
+                let mut v = [V3::splat(l.splat(0.0)); 4];
+                for (i, c) in chunk.iter().enumerate() {
+                    for k in 0..4 {
+                        v[k].set_lane(i, c[k]);
+                    }
+                }
+                let r = offset_ray_origin_lanes(l, v[0], v[1], v[2], v[3]);
+                out.extend((0..chunk.len()).map(|i| r.lane(i)));
+            }
+            out
+        }
+    }
+
+    /// The lane offset against the scalar offset of before, lane by lane, on every backend
+    /// this processor runs (the width-1 one is the scalar engine's).
+    #[test]
+    fn offset_in_lanes_matches_the_scalar_offset_bit_for_bit() {
+        let cases = offset_cases();
+        let want: Vec<Vec3> = cases
+            .iter()
+            .map(|c| offset_reference(c[0], c[1], c[2], c[3]))
+            .collect();
+        let mut backends = 0;
+        for b in crate::simd::Backend::ALL
+            .into_iter()
+            .filter(|b| b.supported())
+        {
+            backends += 1;
+            let got = crate::simd::dispatch(b, OffsetProgram(&cases)).expect("supported");
+            for (k, (g, w)) in got.iter().zip(&want).enumerate() {
+                assert!(
+                    (0..3).all(|i| same(g[i], w[i])),
+                    "{b}: case {k} {:?} gave {g:?}, the scalar offset {w:?}",
+                    cases[k]
+                );
+            }
+        }
+        assert!(backends >= 2);
+        // the public scalar function is the width-1 instance
+        for c in &cases {
+            let (g, w) = (
+                offset_ray_origin(c[0], c[1], c[2], c[3]),
+                offset_reference(c[0], c[1], c[2], c[3]),
+            );
+            assert!((0..3).all(|i| same(g[i], w[i])), "{c:?}");
+        }
+        // the cases reach every branch: moved up, down, and not at all
+        let moved = |s: f32| {
+            cases
+                .iter()
+                .zip(&want)
+                .filter(|(c, w)| (0..3).any(|i| w[i] != c[0][i] && (w[i] - c[0][i]).signum() == s))
+                .count()
+        };
+        assert!(
+            moved(1.0) > 1000 && moved(-1.0) > 1000,
+            "{} {}",
+            moved(1.0),
+            moved(-1.0)
+        );
     }
 }

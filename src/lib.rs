@@ -10,6 +10,7 @@
 pub mod accel;
 pub mod bsdf;
 pub mod camera;
+pub mod display;
 pub mod emitter;
 pub mod error;
 pub mod film;
@@ -27,6 +28,7 @@ pub mod sampler;
 pub mod sampling;
 pub mod scene;
 pub mod shape;
+pub mod simd;
 pub mod spectrum;
 pub mod texture;
 pub mod volume;

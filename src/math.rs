@@ -1,6 +1,10 @@
 //! Numerical building blocks shared by the renderer and the study: the complementary error
 //! function, a first guess of the inverse error function, and quadrature rules (composite
-//! Simpson, Gauss–Legendre).
+//! Simpson, Gauss–Legendre); and in [`elementary`], penumbra's own sine, cosine, exp, ln,
+//! atan2 and acos, which every per-sample caller uses instead of the platform's libm.
+
+mod elementary;
+pub use elementary::{acos, acosf, atan2, atan2f, exp, expf, ln, lnf, sin_cos, sin_cosf};
 
 /// The complementary error function (Chebyshev fit, relative error < 1.2e-7 everywhere).
 pub fn erfc(x: f64) -> f64 {
@@ -14,7 +18,7 @@ pub fn erfc(x: f64) -> f64 {
                         + t * (0.278_868_07
                             + t * (-1.135_203_98
                                 + t * (1.488_515_87 + t * (-0.822_152_23 + t * 0.170_872_77))))))));
-    let ans = t * poly.exp();
+    let ans = t * exp(poly);
     if x >= 0.0 {
         ans
     } else {
@@ -40,7 +44,7 @@ pub fn simpson(f: impl Fn(f64) -> f64, a: f64, b: f64, n: usize) -> f64 {
 /// method on `libm`'s erf. Relative error below 5e-7 for |y| ≤ 0.9966 (w < 5) and 3e-6 up to
 /// |y| = 1 − 1e-12.
 pub fn erfinv_approx(y: f64) -> f64 {
-    let w = -((1.0 - y) * (1.0 + y)).ln();
+    let w = -ln((1.0 - y) * (1.0 + y));
     let (w, coefficients) = if w < 5.0 {
         (
             w - 2.5,

@@ -2,14 +2,22 @@
 //! tiles' film sums are merged in a fixed order. Every pixel sample draws from the scene's
 //! sampler keyed by (seed, pixel, sample index), so the result is bit-identical for any
 //! number of threads.
+//!
+//! Two engines trace a tile's camera paths ([`Engine`]): the scalar engine, one path at a
+//! time, and for the `path` integrator the lane engine ([`crate::integrator::lanes`]), 16
+//! paths side by side, whose results are added to the film in the scalar engine's order so
+//! that its image is the same bit for bit.
 
 use crate::error::{Error, Result};
 use crate::film::{Film, FilmTile};
 use crate::integrator::aov::AovIntegrator;
+use crate::integrator::lanes::path::{trace_tile, CameraSample, TileQueue};
+use crate::integrator::lanes::LaneStats;
 use crate::integrator::ptracer::Splat;
 use crate::integrator::{Integrator, ParticleTracer, PathStats};
 use crate::scene::description::SceneDescription;
 use crate::scene::Scene;
+use crate::simd::Backend;
 use glam::Vec2;
 use rayon::prelude::*;
 use std::sync::atomic::{AtomicU64, Ordering};
@@ -20,6 +28,8 @@ use std::time::Instant;
 pub struct Job {
     pub scene: Scene,
     pub integrator: Integrator,
+    /// The engine that renders camera paths (scalar unless set).
+    pub engine: Engine,
 }
 
 impl Job {
@@ -27,7 +37,11 @@ impl Job {
     pub fn build(desc: &SceneDescription) -> Result<Job> {
         let scene = crate::scene::build::build(desc)?;
         let integrator = Integrator::build(&desc.integrator, &scene)?;
-        Ok(Job { scene, integrator })
+        Ok(Job {
+            scene,
+            integrator,
+            engine: Engine::Scalar,
+        })
     }
 
     /// Loads a Mitsuba XML file with `-D name=value` overrides and builds it.
@@ -44,13 +58,75 @@ impl Job {
         Self::build(&Scene::description_from_xml_str(text, path, defines)?)
     }
 
-    /// The image `settings` asks for ([`render`]).
+    /// The image `settings` asks for, on the job's engine ([`render_with`]).
     pub fn render(
         &self,
         settings: &RenderSettings,
         progress: &(dyn Fn(u64, u64) + Sync),
     ) -> Result<RenderOutput> {
-        render(&self.scene, &self.integrator, settings, progress)
+        render_with(
+            &self.scene,
+            &self.integrator,
+            self.engine,
+            settings,
+            progress,
+        )
+    }
+}
+
+/// Which engine renders the camera paths of a `path` scene.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum Engine {
+    /// One path at a time: every integrator; the oracle of the lane engine.
+    #[default]
+    Scalar,
+    /// Paths side by side in SIMD lanes ([`crate::integrator::lanes`]), on the given backend
+    /// or (`None`) the widest this processor runs. It covers the `path` integrator and gives
+    /// the scalar engine's image bit for bit; other integrators run on the scalar engine.
+    Lanes(Option<Backend>),
+}
+
+/// The engine a render ran on.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum EngineRan {
+    #[default]
+    Scalar,
+    Lanes(Backend),
+    /// The lane engine was asked for, but does not cover this integrator (named): the
+    /// scalar engine ran.
+    ScalarFallback(&'static str),
+}
+
+impl std::fmt::Display for EngineRan {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            EngineRan::Scalar => write!(f, "scalar"),
+            EngineRan::Lanes(b) => write!(f, "lanes ({b}, {} wide)", b.width()),
+            EngineRan::ScalarFallback(name) => write!(
+                f,
+                "scalar (the lane engine covers the path integrator, not {name})"
+            ),
+        }
+    }
+}
+
+impl Engine {
+    /// What a render of `integrator` on this engine runs on; an error if a lane backend
+    /// was named that this processor does not run.
+    pub fn resolve(self, integrator: &Integrator) -> Result<EngineRan> {
+        Ok(match (self, integrator) {
+            (Engine::Scalar, _) => EngineRan::Scalar,
+            (Engine::Lanes(backend), Integrator::Path(_)) => {
+                let b = backend.unwrap_or_else(Backend::best);
+                if !b.supported() {
+                    return Err(Error::Invalid(format!(
+                        "the {b} lane backend needs instructions this processor does not have"
+                    )));
+                }
+                EngineRan::Lanes(b)
+            }
+            (Engine::Lanes(_), other) => EngineRan::ScalarFallback(other.name()),
+        })
     }
 }
 
@@ -82,6 +158,10 @@ pub struct RenderStats {
     pub nonfinite: u64,
     /// Wall-clock time of the sampling loop, in seconds.
     pub seconds: f64,
+    /// The engine that ran (the last pass's, for a progressive render).
+    pub engine: EngineRan,
+    /// How full the lane engine's lanes were (zero on the scalar engine).
+    pub lanes: LaneStats,
 }
 
 impl RenderStats {
@@ -99,12 +179,64 @@ pub struct RenderOutput {
 struct TileResult {
     tile: FilmTile,
     stats: PathStats,
+    lanes: LaneStats,
     nonfinite: u64,
 }
 
+impl TileResult {
+    /// Adds the sample of pixel (x, y) with value `l` at film position `pos`, or counts it
+    /// as non-finite; samples of the border beyond the image (`size`) only lend their
+    /// splats (the image's sample count is its own pixels').
+    #[inline(always)]
+    fn add(
+        &mut self,
+        (x, y): (i64, i64),
+        pos: Vec2,
+        l: crate::spectrum::Spectrum,
+        size: (i64, i64),
+    ) {
+        if l.is_finite() {
+            self.tile.add_sample(pos, l);
+            if !((0..size.0).contains(&x) && (0..size.1).contains(&y)) {
+                self.tile.samples -= 1;
+            }
+        } else {
+            self.nonfinite += 1;
+        }
+    }
+}
+
+/// The camera sample `s` (sample index `first_sample + s`) of pixel (x, y): its sample
+/// stream, film position (pixels) and ray. Both engines make their camera rays here.
+#[inline(always)]
+fn camera_sample(
+    scene: &Scene,
+    sampler: crate::sampler::Sampler,
+    settings: &RenderSettings,
+    (x, y): (i64, i64),
+    s: u64,
+) -> CameraSample {
+    let (pixel, size) = scene.sample_key(x, y);
+    let inv_res = Vec2::new(1.0 / scene.width as f32, 1.0 / scene.height as f32);
+    let mut stream = sampler.stream(settings.seed, pixel, size, settings.first_sample + s);
+    // Mitsuba's sampler dimension order: pixel position, then aperture.
+    let pos = Vec2::new(x as f32, y as f32) + stream.next_2d();
+    let ray = if scene.camera.needs_aperture_sample() {
+        let u_lens = stream.next_2d();
+        scene.camera.generate_ray_lens(pos * inv_res, u_lens)
+    } else {
+        scene.camera.generate_ray(pos * inv_res)
+    };
+    (stream, pos, ray)
+}
+
+/// Renders the samples of one tile and adds them to its film tile in the canonical order
+/// (pixels row by row, samples ascending) on which the image's bits depend: see the film
+/// module's "order of accumulation".
 fn render_tile(
     scene: &Scene,
     integrator: &Integrator,
+    engine: EngineRan,
     settings: &RenderSettings,
     x0: i64,
     y0: i64,
@@ -114,45 +246,46 @@ fn render_tile(
     let (width, height) = (scene.width as i64, scene.height as i64);
     let w = (TILE_SIZE as i64).min(width + b - x0) as usize;
     let h = (TILE_SIZE as i64).min(height + b - y0) as usize;
-    let mut tile = FilmTile::new_at(x0, y0, w, h, scene.filter);
-    let mut stats = PathStats::default();
-    let mut nonfinite = 0;
-    let inv_res = Vec2::new(1.0 / scene.width as f32, 1.0 / scene.height as f32);
+    let mut r = TileResult {
+        tile: FilmTile::new_at(x0, y0, w, h, scene.filter),
+        stats: PathStats::default(),
+        lanes: LaneStats::default(),
+        nonfinite: 0,
+    };
     let sampler = settings.sampler.unwrap_or(scene.sampler);
+    let spp = settings.spp as usize;
+    if let (EngineRan::Lanes(backend), Integrator::Path(path)) = (engine, integrator) {
+        // The tile's samples in the scalar engine's order, traced in lanes, then added to
+        // the film in that order.
+        let pixel = |q: usize| {
+            let p = q / spp.max(1);
+            (x0 + (p % w) as i64, y0 + (p / w) as i64)
+        };
+        let camera = |q: usize| camera_sample(scene, sampler, settings, pixel(q), (q % spp) as u64);
+        let queue = TileQueue {
+            scene,
+            path,
+            total: w * h * spp,
+            camera: &camera,
+        };
+        let mut out = vec![(Vec2::ZERO, crate::spectrum::Spectrum::ZERO); queue.total];
+        let ran = trace_tile(backend, &queue, &mut out, &mut r.stats, &mut r.lanes);
+        assert!(ran, "the {backend} backend was checked before the render");
+        for (q, &(pos, l)) in out.iter().enumerate() {
+            r.add(pixel(q), pos, l, (width, height));
+        }
+        return r;
+    }
     for y in y0..y0 + h as i64 {
         for x in x0..x0 + w as i64 {
-            let (pixel, size) = scene.sample_key(x, y);
-            let inside = (0..width).contains(&x) && (0..height).contains(&y);
             for s in 0..settings.spp as u64 {
-                let mut sampler =
-                    sampler.stream(settings.seed, pixel, size, settings.first_sample + s);
-                // Mitsuba's sampler dimension order: pixel position, then aperture.
-                let pos = Vec2::new(x as f32, y as f32) + sampler.next_2d();
-                let ray = if scene.camera.needs_aperture_sample() {
-                    let u_lens = sampler.next_2d();
-                    scene.camera.generate_ray_lens(pos * inv_res, u_lens)
-                } else {
-                    scene.camera.generate_ray(pos * inv_res)
-                };
-                let l = integrator.li(scene, ray, &mut sampler, &mut stats);
-                if l.is_finite() {
-                    tile.add_sample(pos, l);
-                    // The image's sample count is its own pixels' (spp per pixel); samples
-                    // of the border only lend their splats.
-                    if !inside {
-                        tile.samples -= 1;
-                    }
-                } else {
-                    nonfinite += 1;
-                }
+                let (mut stream, pos, ray) = camera_sample(scene, sampler, settings, (x, y), s);
+                let l = integrator.li(scene, ray, &mut stream, &mut r.stats);
+                r.add((x, y), pos, l, (width, height));
             }
         }
     }
-    TileResult {
-        tile,
-        stats,
-        nonfinite,
-    }
+    r
 }
 
 /// A pool of `threads` workers (default: one per core).
@@ -169,21 +302,44 @@ pub fn thread_pool(threads: Option<usize>) -> Result<rayon::ThreadPool> {
         .map_err(|e| Error::Invalid(format!("cannot start worker threads: {e}")))
 }
 
-/// Renders `scene` with `integrator` at `settings.spp` samples per pixel. `progress(done,
-/// total)` is called (from worker threads) as samples complete.
+/// Renders `scene` with `integrator` at `settings.spp` samples per pixel, on the scalar
+/// engine. `progress(done, total)` is called (from worker threads) as samples complete.
 pub fn render(
     scene: &Scene,
     integrator: &Integrator,
     settings: &RenderSettings,
     progress: &(dyn Fn(u64, u64) + Sync),
 ) -> Result<RenderOutput> {
+    render_with(scene, integrator, Engine::Scalar, settings, progress)
+}
+
+/// [`render`] on `engine` (the lane engine where it covers the integrator; the statistics
+/// say which ran).
+pub fn render_with(
+    scene: &Scene,
+    integrator: &Integrator,
+    engine: Engine,
+    settings: &RenderSettings,
+    progress: &(dyn Fn(u64, u64) + Sync),
+) -> Result<RenderOutput> {
+    let engine = engine.resolve(integrator)?;
     let pool = thread_pool(settings.threads)?;
     match integrator {
         Integrator::ParticleTracer(pt) => {
-            return Ok(render_particles(scene, pt, settings, &pool, progress))
+            let mut out = render_particles(scene, pt, settings, &pool, progress);
+            out.stats.engine = engine;
+            return Ok(out);
         }
-        Integrator::Sppm(sppm) => return sppm.render(scene, settings, &pool, progress),
-        Integrator::Bdpt(b) => return Ok(render_bdpt(scene, b, settings, &pool, progress)),
+        Integrator::Sppm(sppm) => {
+            let mut out = sppm.render(scene, settings, &pool, progress)?;
+            out.stats.engine = engine;
+            return Ok(out);
+        }
+        Integrator::Bdpt(b) => {
+            let mut out = render_bdpt(scene, b, settings, &pool, progress);
+            out.stats.engine = engine;
+            return Ok(out);
+        }
         _ => {}
     }
     // Tiles of the image, or of the image and the border Mitsuba's `sample_border` samples.
@@ -211,7 +367,7 @@ pub fn render(
         tiles
             .par_iter()
             .map(|&(x, y)| {
-                let r = render_tile(scene, integrator, settings, x, y);
+                let r = render_tile(scene, integrator, engine, settings, x, y);
                 let pixels =
                     (TILE_SIZE as i64).min(width + b - x) * (TILE_SIZE as i64).min(height + b - y);
                 let n = pixels as u64 * settings.spp as u64;
@@ -225,11 +381,13 @@ pub fn render(
     let mut stats = RenderStats {
         paths: total,
         seconds,
+        engine,
         ..Default::default()
     };
     for r in &results {
         film.merge(&r.tile);
         stats.path += r.stats;
+        stats.lanes += r.lanes;
         stats.nonfinite += r.nonfinite;
     }
     Ok(RenderOutput { film, stats })

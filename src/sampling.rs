@@ -1,6 +1,7 @@
 //! Shared sampling math: warps from the unit square and the MIS heuristic. Everything that
 //! samples a direction or a point uses these; nothing re-implements them.
 
+use crate::simd::{LaneF32, Lanes, Scalar};
 use glam::{Vec2, Vec3};
 use std::f32::consts::{FRAC_PI_2, FRAC_PI_4, PI};
 
@@ -17,7 +18,8 @@ pub fn square_to_uniform_disk_concentric(u: Vec2) -> Vec2 {
     } else {
         (o.y, FRAC_PI_2 - FRAC_PI_4 * (o.x / o.y))
     };
-    Vec2::new(r * theta.cos(), r * theta.sin())
+    let (sin, cos) = crate::math::sin_cosf(theta);
+    Vec2::new(r * cos, r * sin)
 }
 
 /// Cosine-weighted hemisphere around +z by Malley's method (project the concentric disk).
@@ -43,30 +45,48 @@ pub fn square_to_cosine_hemisphere_pdf(v: Vec3) -> f32 {
 pub fn square_to_uniform_sphere(u: Vec2) -> Vec3 {
     let z = 1.0 - 2.0 * u.y;
     let r = (1.0 - z * z).max(0.0).sqrt();
-    let phi = 2.0 * PI * u.x;
-    Vec3::new(r * phi.cos(), r * phi.sin(), z)
+    let (sin, cos) = crate::math::sin_cosf(2.0 * PI * u.x);
+    Vec3::new(r * cos, r * sin, z)
 }
 
 /// Uniform barycentrics (b1, b2) on a triangle (Shirley's square-root parameterisation);
 /// b0 = 1 − b1 − b2.
 #[inline]
 pub fn square_to_uniform_triangle(u: Vec2) -> Vec2 {
-    let t = (1.0 - u.x).sqrt();
-    Vec2::new(1.0 - t, u.y * t)
+    let (b1, b2) = square_to_uniform_triangle_lanes(Scalar, u.x, u.y);
+    Vec2::new(b1, b2)
+}
+
+/// [`square_to_uniform_triangle`] lane by lane: (1 − t, u_y t) with t = √(1 − u_x).
+#[inline(always)]
+pub fn square_to_uniform_triangle_lanes<L: Lanes>(l: L, ux: L::F, uy: L::F) -> (L::F, L::F) {
+    let one = l.splat(1.0);
+    let t = (one - ux).sqrt();
+    (one - t, uy * t)
 }
 
 /// Veach 1997 (thesis §9.2) power heuristic with β = 2, for one sample from each strategy.
+/// The width-1 instance of [`mis_power_lanes`].
 #[inline]
 pub fn mis_power(pdf_a: f32, pdf_b: f32) -> f32 {
+    mis_power_lanes(Scalar, pdf_a, pdf_b)
+}
+
+/// [`mis_power`] lane by lane: a² / (a² + b²) where that sum is positive and a² finite, else
+/// 1 where a² is infinite, else 0.
+#[inline(always)]
+pub fn mis_power_lanes<L: Lanes>(l: L, pdf_a: L::F, pdf_b: L::F) -> L::F {
     let a = pdf_a * pdf_a;
     let b = pdf_b * pdf_b;
-    if a + b > 0.0 && a.is_finite() {
-        a / (a + b)
-    } else if a.is_infinite() {
-        1.0
-    } else {
-        0.0
-    }
+    let sum = a + b;
+    let finite = a.is_finite();
+    let ok = sum.cmp_gt(l.splat(0.0)) & finite;
+    let infinite = !(finite | a.is_nan());
+    L::F::select(
+        ok,
+        a / sum,
+        L::F::select(infinite, l.splat(1.0), l.splat(0.0)),
+    )
 }
 
 /// A discrete distribution over weights, sampled by inverting its CDF.
@@ -129,8 +149,8 @@ impl Distribution1D {
 pub fn square_to_uniform_cone(u: Vec2, cos_theta_max: f32) -> Vec3 {
     let cos_theta = (1.0 - u.y) + u.y * cos_theta_max;
     let sin_theta = (1.0 - cos_theta * cos_theta).max(0.0).sqrt();
-    let phi = 2.0 * PI * u.x;
-    Vec3::new(sin_theta * phi.cos(), sin_theta * phi.sin(), cos_theta)
+    let (sin_phi, cos_phi) = crate::math::sin_cosf(2.0 * PI * u.x);
+    Vec3::new(sin_theta * cos_phi, sin_theta * sin_phi, cos_theta)
 }
 
 /// Walker's alias method (Walker 1977) with Vose's numerically stable construction (Vose
@@ -421,6 +441,77 @@ mod tests {
                 pdf > 0.0 && (pdf - d.pdf(uv)).abs() < 1e-5 * pdf,
                 "{uv} {pdf}"
             );
+        }
+    }
+
+    /// `mis_power` as it was before the lane kernel (issue 42, step 3a).
+    fn mis_power_reference(pdf_a: f32, pdf_b: f32) -> f32 {
+        let a = pdf_a * pdf_a;
+        let b = pdf_b * pdf_b;
+        if a + b > 0.0 && a.is_finite() {
+            a / (a + b)
+        } else if a.is_infinite() {
+            1.0
+        } else {
+            0.0
+        }
+    }
+
+    struct Mis<'a>(&'a [(f32, f32)]);
+
+    impl crate::simd::LaneProgram for Mis<'_> {
+        type Output = Vec<f32>;
+        #[inline(always)]
+        fn run<L: Lanes>(self, l: L) -> Vec<f32> {
+            let mut out = Vec::new();
+            for chunk in self.0.chunks(L::WIDTH) {
+                let (mut a, mut b) = (l.splat(0.0), l.splat(0.0));
+                for (i, &(x, y)) in chunk.iter().enumerate() {
+                    a.set_lane(i, x);
+                    b.set_lane(i, y);
+                }
+                let w = mis_power_lanes(l, a, b);
+                out.extend((0..chunk.len()).map(|i| w.lane(i)));
+            }
+            out
+        }
+    }
+
+    /// The power heuristic in lanes against the scalar code of before, on every backend,
+    /// on densities with the edges: 0, subnormal, overflowing squares, ∞ and NaN.
+    #[test]
+    fn mis_power_in_lanes_matches_the_scalar_code() {
+        use rand::{RngExt, SeedableRng};
+        let mut rng = rand_pcg::Pcg32::seed_from_u64(0x3157);
+        let special = [
+            0.0,
+            -0.0,
+            1e-40,
+            1e-20,
+            1.0,
+            2e19,
+            1e30,
+            f32::MAX,
+            f32::INFINITY,
+            f32::NAN,
+        ];
+        let x = |rng: &mut rand_pcg::Pcg32| match rng.random_range(0..3) {
+            0 => special[rng.random_range(0..special.len())],
+            _ => rng.random_range(0.0f32..10.0),
+        };
+        let cases: Vec<(f32, f32)> = (0..16 * 1024).map(|_| (x(&mut rng), x(&mut rng))).collect();
+        for b in crate::simd::Backend::ALL
+            .into_iter()
+            .filter(|b| b.supported())
+        {
+            let got = crate::simd::dispatch(b, Mis(&cases)).expect("supported");
+            for (&(pa, pb), g) in cases.iter().zip(got) {
+                let w = mis_power_reference(pa, pb);
+                assert!(
+                    g.to_bits() == w.to_bits() || g.is_nan() && w.is_nan(),
+                    "{b}: mis_power({pa}, {pb}) = {g}, scalar {w}"
+                );
+            }
         }
     }
 }

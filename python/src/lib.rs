@@ -424,7 +424,7 @@ fn converge<'py>(
                         threads,
                         &reference,
                         max_seconds,
-                        &mut |_| {},
+                        &mut |_, _| {},
                     )
                 })
                 .map_err(err)?;

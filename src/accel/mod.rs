@@ -54,6 +54,14 @@ impl Layout {
         }
         Layout::Wide4
     }
+
+    /// Primitives per leaf block: 4 or 8.
+    fn block_width(self) -> u32 {
+        match self {
+            Layout::Wide4 => 4,
+            Layout::Wide8 => 8,
+        }
+    }
 }
 
 /// A primitive as the BVH sees it: triangle `index` of mesh `shape`, an analytic shape
@@ -263,6 +271,20 @@ struct LeafContext<'a> {
 /// the hierarchy that was hit).
 type InnerHit = Hit;
 
+#[cfg(test)]
+thread_local! {
+    /// Inner nodes whose children's boxes traversals on this thread have tested. Unit tests
+    /// only: the library outside `cfg(test)` has no counter, so its traversal is unchanged.
+    static NODE_VISITS: std::cell::Cell<u64> = const { std::cell::Cell::new(0) };
+}
+
+/// Counts one inner node's box test (unit tests only, see [`NODE_VISITS`]).
+#[cfg(test)]
+#[inline(always)]
+fn count_node_visit() {
+    NODE_VISITS.with(|c| c.set(c.get() + 1));
+}
+
 /// Traversal stack depth without heap allocation; deeper trees (degenerate input) fall back
 /// to a heap-allocated stack.
 const STACK: usize = 128;
@@ -317,9 +339,35 @@ fn open_children(
     children
 }
 
+/// Whether a hit at `t` on primitive `prim` (of instance `instance`, or [`NO_INSTANCE`])
+/// comes before `best` in the canonical order of hits along a ray: by t, then instance, then
+/// primitive (slot). The closest hit is the least hit in this order, so it is a function of
+/// the ray alone, whatever order a traversal visits the nodes in (issue 42: a packet
+/// traversal must find the hit the single-ray one finds, even between coplanar triangles
+/// at exactly the same t). The tests only report hits below [`bound_after`] the best one's t,
+/// so `t` is at most `best.t` here.
+#[inline(always)]
+fn precedes(t: f32, instance: u32, prim: u32, best: &Option<Hit>) -> bool {
+    match best {
+        None => true,
+        Some(b) => t != b.t || (instance, prim) < (b.instance, b.prim),
+    }
+}
+
+/// The bound the tests of a traversal use once `t` is the best hit: the next f32 above it,
+/// so that a test keeping hits strictly below the bound also reports ties at exactly `t`,
+/// for [`precedes`] to decide. (A hit's t is positive and finite: its successor is one more
+/// in its bits.)
+#[inline(always)]
+fn bound_after(t: f32) -> f32 {
+    f32::from_bits(t.to_bits() + 1)
+}
+
 /// Records the triangle hits of one leaf block (lanes `mask`, with distances `t` and
-/// barycentrics `b1`, `b2`, primitives `slot`): the nearest below `tmax` in `best`, or with
-/// `any` the first one. Returns the new tmax and whether an occlusion query is answered.
+/// barycentrics `b1`, `b2`, primitives `slot`): the least in the order of [`precedes`] into
+/// `best`, or with `any` the first one. Every reported hit lies below `tmax` (the ray's own
+/// bound, or [`bound_after`] the best hit's t). Returns the new bound and whether an
+/// occlusion query is answered.
 #[allow(clippy::too_many_arguments)]
 #[inline(always)]
 fn record_triangle_hits<const N: usize>(
@@ -347,11 +395,11 @@ fn record_triangle_hits<const N: usize>(
     while mask != 0 {
         let lane = mask.trailing_zeros() as usize;
         mask &= mask - 1;
-        if t[lane] < tmax {
-            tmax = t[lane];
+        if t[lane] < tmax && precedes(t[lane], NO_INSTANCE, slot[lane], best) {
+            tmax = bound_after(t[lane]);
             *best = Some(Hit {
                 prim: slot[lane],
-                t: tmax,
+                t: t[lane],
                 b1: b1[lane],
                 b2: b2[lane],
                 instance: NO_INSTANCE,
@@ -412,7 +460,14 @@ impl Accel {
         } else {
             layout
         };
-        Self::build_in_layout(shapes, 0..shapes.len(), Vec::new(), Vec::new(), layout)
+        Self::build_in_layout(
+            shapes,
+            0..shapes.len(),
+            Vec::new(),
+            Vec::new(),
+            layout,
+            layout.block_width(),
+        )
     }
 
     /// The layout this hierarchy was built in.
@@ -443,15 +498,27 @@ impl Accel {
         instances: Vec<Instance>,
         groups: Vec<Group>,
     ) -> Self {
-        Self::build_in_layout(shapes, range, instances, groups, Layout::best())
+        let layout = Layout::best();
+        Self::build_in_layout(
+            shapes,
+            range,
+            instances,
+            groups,
+            layout,
+            layout.block_width(),
+        )
     }
 
+    /// The hierarchy in `layout`, whose binary BVH has leaves of at most
+    /// `max_prims_per_leaf` primitives (the block width, so that a leaf is one block, except
+    /// in the tests of leaves that span several blocks).
     fn build_in_layout(
         shapes: &[Shape],
         range: std::ops::Range<usize>,
         instances: Vec<Instance>,
         groups: Vec<Group>,
         layout: Layout,
+        max_prims_per_leaf: u32,
     ) -> Self {
         let mut prims = Vec::new();
         for i in range {
@@ -510,10 +577,7 @@ impl Accel {
             &bounded,
             BvhBuildParams {
                 // One leaf block's worth: its primitives are tested at once.
-                max_prims_per_leaf: match layout {
-                    Layout::Wide4 => 4,
-                    Layout::Wide8 => 8,
-                },
+                max_prims_per_leaf,
                 ..BvhBuildParams::medium_build()
             },
             &mut Duration::default(),
@@ -646,8 +710,8 @@ impl Accel {
     }
 
     /// Tests the analytic primitives and instances of one leaf block (lanes `mask` of
-    /// `slot`), nearest hit into `best`. Returns the new tmax and whether an occlusion query
-    /// is answered.
+    /// `slot`), the least hit in the order of [`precedes`] into `best`. Returns the new bound
+    /// and whether an occlusion query is answered.
     #[allow(clippy::too_many_arguments)]
     #[inline(always)]
     fn test_analytic_lanes(
@@ -664,10 +728,13 @@ impl Accel {
             let lane = mask.trailing_zeros() as usize;
             mask &= mask - 1;
             if let Some(hit) = self.test_analytic(slot[lane], ray, tmax, shapes, any) {
-                tmax = hit.t;
-                *best = Some(hit);
                 if any {
+                    *best = Some(hit);
                     return (tmax, true);
+                }
+                if precedes(hit.t, hit.instance, hit.prim, best) {
+                    tmax = bound_after(hit.t);
+                    *best = Some(hit);
                 }
             }
         }
@@ -751,6 +818,8 @@ impl Accel {
             // Descend through inner nodes, nearest child first.
             while node & LEAF == 0 {
                 let n = &self.nodes[node as usize];
+                #[cfg(test)]
+                count_node_visit();
                 let (mask, t_near) = boxes.test(n, tmax);
                 if mask == 0 {
                     node = EMPTY;
@@ -921,6 +990,134 @@ mod tests {
         best
     }
 
+    /// Brute force in the canonical order: the least (t, slot) over every primitive slot of
+    /// `accel` (triangles and analytic shapes).
+    fn brute_force_canonical(accel: &Accel, shapes: &[Shape], ray: &Ray) -> Option<(f32, u32)> {
+        let shear = RayShear::new(ray.o, ray.d);
+        let mut best: Option<(f32, u32)> = None;
+        for (slot, prim) in accel.prims.iter().enumerate() {
+            let t = match *prim {
+                Primitive::Triangle { shape, index } => match &shapes[shape as usize].geometry {
+                    ShapeGeometry::Mesh(m) => {
+                        intersect_triangle(&shear, &m.vertices(index as usize), ray.tmax)
+                            .map(|h| h.0)
+                    }
+                    _ => None,
+                },
+                Primitive::Analytic { shape } => shapes[shape as usize].geometry.intersect(ray),
+                Primitive::Instance { .. } => None,
+            };
+            if let Some(t) = t {
+                let key = (t, slot as u32);
+                if best.is_none_or(|b| key < b) {
+                    best = Some(key);
+                }
+            }
+        }
+        best
+    }
+
+    /// Coplanar, overlapping triangles hit at exactly the same t: the closest hit is the
+    /// least (t, primitive slot), whichever order the triangles were inserted in and
+    /// whichever order the traversal visits their leaves. Scenes: two triangles of one plane,
+    /// one a shifted copy of the other, inserted in both orders; 24 identical triangles
+    /// (three 8-wide leaf blocks, equal boxes: the visit order is the traversal's alone); 24
+    /// triangles of one plane at random offsets (ties where their t rounds alike), with a
+    /// sphere touching the plane. Both layouts.
+    #[test]
+    fn ties_resolve_by_primitive_slot() {
+        let mut rng = rand_pcg::Pcg32::seed_from_u64(42);
+        let tri = |c: Vec3| {
+            [
+                c + Vec3::new(-1.0, -1.0, 0.0),
+                c + Vec3::new(1.5, -1.0, 0.0),
+                c + Vec3::new(-1.0, 1.5, 0.0),
+            ]
+        };
+        let mesh = |tris: Vec<[Vec3; 3]>| {
+            let n = tris.len() as u32;
+            shape(ShapeGeometry::Mesh(Mesh::new(
+                tris.concat(),
+                None,
+                None,
+                (0..n).map(|i| [3 * i, 3 * i + 1, 3 * i + 2]).collect(),
+                false,
+            )))
+        };
+        let (a, b) = (tri(Vec3::new(0.0, 0.0, 1.0)), tri(Vec3::new(0.3, 0.2, 1.0)));
+        let scattered: Vec<[Vec3; 3]> = (0..24)
+            .map(|_| {
+                tri(Vec3::new(
+                    rng.random_range(-0.5..0.5),
+                    rng.random_range(-0.5..0.5),
+                    1.0,
+                ))
+            })
+            .collect();
+        let scenes = [
+            vec![mesh(vec![a, b])],
+            vec![mesh(vec![b, a])],
+            vec![mesh(vec![a]), mesh(vec![b])],
+            vec![mesh(vec![b]), mesh(vec![a])],
+            vec![mesh(vec![a; 24])],
+            vec![
+                mesh(scattered),
+                shape(ShapeGeometry::Sphere(Sphere::new(
+                    DVec3::new(0.0, 0.0, 1.5),
+                    0.5,
+                    false,
+                ))),
+            ],
+        ];
+        for layout in [Layout::Wide4, Layout::Wide8] {
+            for (k, shapes) in scenes.iter().enumerate() {
+                let accel = Accel::build_with_layout(shapes, layout);
+                let mut ties = 0;
+                for i in 0..4000 {
+                    let o = Vec3::new(
+                        rng.random_range(-3.0..3.0),
+                        rng.random_range(-3.0..3.0),
+                        rng.random_range(-3.0..0.0),
+                    );
+                    let target = Vec3::new(
+                        rng.random_range(-0.6..0.6),
+                        rng.random_range(-0.6..0.6),
+                        1.0,
+                    );
+                    let ray = Ray::new(o, target - o, f32::INFINITY);
+                    let want = brute_force_canonical(&accel, shapes, &ray);
+                    let got = accel.intersect(&ray, shapes).map(|h| (h.t, h.prim));
+                    assert_eq!(got, want, "{layout:?} scene {k} ray {i}");
+                    // rays with a second primitive at exactly the closest t
+                    let shear = RayShear::new(ray.o, ray.d);
+                    let at_best = accel
+                        .prims
+                        .iter()
+                        .filter(|p| match **p {
+                            Primitive::Triangle { shape, index } => {
+                                match &shapes[shape as usize].geometry {
+                                    ShapeGeometry::Mesh(m) => intersect_triangle(
+                                        &shear,
+                                        &m.vertices(index as usize),
+                                        ray.tmax,
+                                    )
+                                    .is_some_and(|h| Some(h.0) == want.map(|w| w.0)),
+                                    _ => false,
+                                }
+                            }
+                            _ => false,
+                        })
+                        .count();
+                    ties += (at_best > 1) as u32;
+                }
+                assert!(
+                    ties > 100,
+                    "{layout:?} scene {k}: only {ties} rays with a tie"
+                );
+            }
+        }
+    }
+
     fn shape(geometry: ShapeGeometry) -> Shape {
         Shape {
             geometry,
@@ -983,10 +1180,23 @@ mod tests {
             .collect();
         for layout in [Layout::Wide4, Layout::Wide8] {
             let group = Group {
-                accel: Accel::build_in_layout(&shapes, 0..1, vec![], vec![], layout),
+                accel: Accel::build_in_layout(
+                    &shapes,
+                    0..1,
+                    vec![],
+                    vec![],
+                    layout,
+                    layout.block_width(),
+                ),
             };
-            let accel =
-                Accel::build_in_layout(&shapes, 1..1, instances.clone(), vec![group], layout);
+            let accel = Accel::build_in_layout(
+                &shapes,
+                1..1,
+                instances.clone(),
+                vec![group],
+                layout,
+                layout.block_width(),
+            );
             let mut hits = 0;
             for i in 0..20000 {
                 // A point on a random face of a random instance, in world space.
@@ -1010,6 +1220,229 @@ mod tests {
                 hits += expected.is_some() as u32;
             }
             assert!(hits > 15000, "{layout:?}: {hits} hits");
+        }
+    }
+
+    /// A point with coordinates uniform in [−s, s).
+    fn v3(rng: &mut rand_pcg::Pcg32, s: f32) -> Vec3 {
+        Vec3::new(
+            rng.random_range(-s..s),
+            rng.random_range(-s..s),
+            rng.random_range(-s..s),
+        )
+    }
+
+    /// Leaf blocks followed by another block of the same leaf, in either layout.
+    fn chained_blocks(accel: &Accel) -> usize {
+        #[cfg(target_arch = "x86_64")]
+        if let Some(w) = &accel.wide8 {
+            return w.chained_blocks();
+        }
+        accel.leaves.iter().filter(|b| b.more).count()
+    }
+
+    /// Leaf blocks, in either layout.
+    fn leaf_blocks(accel: &Accel) -> usize {
+        #[cfg(target_arch = "x86_64")]
+        if let Some(w) = &accel.wide8 {
+            return w.leaf_blocks();
+        }
+        accel.leaves.len()
+    }
+
+    /// Runs `body` on a thread of its own and fails if it has not returned within `secs`
+    /// seconds (an endless loop in the traversal), or with the thread's own panic.
+    fn within_seconds(secs: u64, body: impl FnOnce() + Send + 'static) {
+        use std::sync::mpsc::{channel, RecvTimeoutError};
+        let (tx, rx) = channel();
+        let worker = std::thread::spawn(move || {
+            body();
+            let _ = tx.send(());
+        });
+        match rx.recv_timeout(Duration::from_secs(secs)) {
+            Err(RecvTimeoutError::Timeout) => {
+                panic!("the traversal did not return within {secs} s (an endless loop?)")
+            }
+            Ok(()) | Err(RecvTimeoutError::Disconnected) => {
+                if let Err(e) = worker.join() {
+                    std::panic::resume_unwind(e);
+                }
+            }
+        }
+    }
+
+    /// Leaves of up to 32 primitives (the builder's limit raised above the block width, as
+    /// obvhs's default of 8 would do for the 4-wide layout, or another obvhs release might):
+    /// each such leaf spans several leaf blocks chained by `more`, and the traversal must
+    /// test every block of the chain and stop after its last. Two stacks of 32 parallel
+    /// triangles in shuffled order (each one leaf) and a soup of 600 triangles, against
+    /// brute force, in both layouts.
+    /// The work runs on a thread of its own and the test fails if it has not returned in 60 s
+    /// (it takes well under one): a chain walked without advancing never ends.
+    #[test]
+    fn leaves_of_several_blocks_are_tested_block_by_block() {
+        within_seconds(60, || {
+            let mut rng = rand_pcg::Pcg32::seed_from_u64(44);
+            // Two stacks of 32 (obvhs collapses nothing in a tree of at most 2 · 32 + 1
+            // nodes), 5 apart, their layers 0.001 apart: splitting a stack shrinks no box
+            // enough to pay for a node, so each becomes one leaf.
+            let mut order: Vec<u32> = (0..64).collect();
+            for i in (1..order.len()).rev() {
+                order.swap(i, rng.random_range(0..=i));
+            }
+            let stack: Vec<Vec3> = order
+                .iter()
+                .flat_map(|&i| {
+                    let (x, z) = (5.0 * (i / 32) as f32, 0.001 * (i % 32) as f32);
+                    [
+                        Vec3::new(x, 0.0, z),
+                        Vec3::new(x + 1.0, 0.0, z),
+                        Vec3::new(x, 1.0, z),
+                    ]
+                })
+                .collect();
+            let stack = Mesh::new(
+                stack,
+                None,
+                None,
+                (0..64u32).map(|i| [3 * i, 3 * i + 1, 3 * i + 2]).collect(),
+                false,
+            );
+            let mut soup = Vec::new();
+            for _ in 0..600 {
+                let c = v3(&mut rng, 2.0);
+                soup.extend([
+                    c + v3(&mut rng, 0.3),
+                    c + v3(&mut rng, 0.3),
+                    c + v3(&mut rng, 0.3),
+                ]);
+            }
+            let soup = Mesh::new(
+                soup,
+                None,
+                None,
+                (0..600u32).map(|i| [3 * i, 3 * i + 1, 3 * i + 2]).collect(),
+                false,
+            );
+            let scenes = [
+                vec![shape(ShapeGeometry::Mesh(stack))],
+                vec![shape(ShapeGeometry::Mesh(soup))],
+            ];
+            for layout in [Layout::Wide4, Layout::Wide8] {
+                let layout = if layout == Layout::Wide8 {
+                    Layout::best()
+                } else {
+                    layout
+                };
+                // The default build makes leaves of one block each (the builder's limit is
+                // the block width), filled more than half on average: the 64 triangles take
+                // 17 blocks of 4 or 9 of 8 (2026-12-02).
+                let width = match layout {
+                    Layout::Wide4 => 4,
+                    Layout::Wide8 => 8,
+                };
+                let accel = Accel::build_with_layout(&scenes[0], layout);
+                let blocks = leaf_blocks(&accel);
+                assert_eq!(
+                    chained_blocks(&accel),
+                    0,
+                    "{layout:?}: a leaf of several blocks"
+                );
+                assert!(
+                    blocks <= 2 * 64 / width,
+                    "{layout:?}: {blocks} leaf blocks for 64 triangles"
+                );
+                for (k, shapes) in scenes.iter().enumerate() {
+                    let range = 0..shapes.len();
+                    let accel = Accel::build_in_layout(shapes, range, vec![], vec![], layout, 32);
+                    if k == 0 {
+                        assert!(
+                            chained_blocks(&accel) == 2 * (32 / width - 1),
+                            "{layout:?}: each stack of 32 must be one leaf of chained blocks"
+                        );
+                    }
+                    let mut hits = 0;
+                    for i in 0..5000 {
+                        let target = if k == 0 {
+                            // A point inside the stack's footprint, between its layers.
+                            let a = rng.random_range(0.0..1.0);
+                            let b = rng.random_range(0.0..1.0);
+                            let (a, b): (f32, f32) = if a + b > 1.0 {
+                                (1.0 - a, 1.0 - b)
+                            } else {
+                                (a, b)
+                            };
+                            let x = 5.0 * rng.random_range(0..2) as f32;
+                            Vec3::new(x + a, b, rng.random_range(-0.005..0.036))
+                        } else {
+                            v3(&mut rng, 2.0)
+                        };
+                        let o = target + v3(&mut rng, 3.0);
+                        let ray = Ray::new(o, target - o, f32::INFINITY);
+                        let expected = brute_force(shapes, &ray);
+                        let got = accel.intersect(&ray, shapes).map(|h| h.t);
+                        assert_eq!(expected, got, "{layout:?} scene {k} ray {i}");
+                        assert_eq!(expected.is_some(), accel.occluded(&ray, shapes));
+                        hits += expected.is_some() as u32;
+                    }
+                    assert!(hits > 1000, "{layout:?} scene {k}: {hits} hits");
+                }
+            }
+        });
+    }
+
+    /// Box culling, counted: rays that pass a mesh at a distance (their closest approach to
+    /// the centre of its unit-cube bounds is at least 1, beyond the cube's half-diagonal
+    /// 0.87) test the root's children and enter none: exactly one node visit per query, in
+    /// both layouts. A slab test that stopped culling boxes the ray passes ahead of it (the
+    /// far distance widened by 2/γ(3) instead of 2γ(3)) would keep every hit and image, and
+    /// only this count sees it.
+    #[test]
+    fn rays_that_pass_a_mesh_visit_only_the_root() {
+        let mut rng = rand_pcg::Pcg32::seed_from_u64(45);
+        let mut positions = Vec::new();
+        for _ in 0..500 {
+            let c = (v3(&mut rng, 0.5) + 0.5) * 0.9 + Vec3::splat(0.05);
+            positions.extend([
+                c + ((v3(&mut rng, 0.5) + 0.5) - 0.5) * 0.1,
+                c + ((v3(&mut rng, 0.5) + 0.5) - 0.5) * 0.1,
+                c + ((v3(&mut rng, 0.5) + 0.5) - 0.5) * 0.1,
+            ]);
+        }
+        let mesh = Mesh::new(
+            positions,
+            None,
+            None,
+            (0..500u32).map(|i| [3 * i, 3 * i + 1, 3 * i + 2]).collect(),
+            false,
+        );
+        let shapes = vec![shape(ShapeGeometry::Mesh(mesh))];
+        let centre = Vec3::splat(0.5);
+        for layout in [Layout::Wide4, Layout::Wide8] {
+            let accel = Accel::build_with_layout(&shapes, layout);
+            NODE_VISITS.with(|c| c.set(0));
+            let rays = 2000;
+            for i in 0..rays {
+                let d = ((v3(&mut rng, 0.5) + 0.5) - 0.5).normalize();
+                // An offset perpendicular to d, of length 1 to 2.
+                let u = d.any_orthonormal_vector();
+                let w = d.cross(u);
+                let phi = rng.random_range(0.0..std::f32::consts::TAU);
+                let off = (u * phi.cos() + w * phi.sin()) * rng.random_range(1.0..2.0);
+                let o = centre + off - 4.0 * d;
+                let ray = Ray::new(o, d, f32::INFINITY);
+                assert!(
+                    accel.intersect(&ray, &shapes).is_none(),
+                    "{layout:?} ray {i}"
+                );
+                assert!(!accel.occluded(&ray, &shapes), "{layout:?} ray {i}");
+            }
+            let visits = NODE_VISITS.with(|c| c.get());
+            assert_eq!(
+                visits,
+                2 * rays,
+                "{layout:?}: {visits} node visits for {rays} rays, each traced twice"
+            );
         }
     }
 

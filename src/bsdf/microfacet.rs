@@ -136,7 +136,7 @@ impl Microfacet {
         let r = match self.kind {
             MicrofacetType::Beckmann => {
                 let e = (mx * mx / (au * au) + my * my / (av * av)) / cos2;
-                (-e).exp() / (std::f64::consts::PI * au * av * cos2 * cos2)
+                crate::math::exp(-e) / (std::f64::consts::PI * au * av * cos2 * cos2)
             }
             MicrofacetType::Ggx => {
                 let t = mx * mx / (au * au) + my * my / (av * av) + cos2;
@@ -171,7 +171,9 @@ impl Microfacet {
                     return 0.0;
                 }
                 // (erf(a) − 1)/2 + e^{−a²} / (2 a √π)
-                (-0.5 * erfc(a) + (-a * a).exp() / (2.0 * a * std::f64::consts::PI.sqrt())).max(0.0)
+                (-0.5 * erfc(a)
+                    + crate::math::exp(-a * a) / (2.0 * a * std::f64::consts::PI.sqrt()))
+                .max(0.0)
             }
             MicrofacetType::Ggx => {
                 let inv_a2 = 1.0 / (a * a);
@@ -257,13 +259,14 @@ impl Microfacet {
         let (u1, u2) = (u.x as f64, u.y as f64);
         let radius = match self.kind {
             // slopes ~ N(0, α²/2) per axis: |slope|/α = √(−ln(1 − u))
-            MicrofacetType::Beckmann => (-(-u1).ln_1p()).sqrt(),
+            // (1 − u1 is exact: u1 is an f32 in [0, 1))
+            MicrofacetType::Beckmann => (-crate::math::ln(1.0 - u1)).sqrt(),
             // P(|slope|/α < r) = r² / (1 + r²)
             MicrofacetType::Ggx => (u1 / (1.0 - u1)).sqrt(),
         };
-        let phi = 2.0 * std::f64::consts::PI * u2;
-        let sx = self.alpha_u as f64 * radius * phi.cos();
-        let sy = self.alpha_v as f64 * radius * phi.sin();
+        let (sin_phi, cos_phi) = crate::math::sin_cos(2.0 * std::f64::consts::PI * u2);
+        let sx = self.alpha_u as f64 * radius * cos_phi;
+        let sy = self.alpha_v as f64 * radius * sin_phi;
         Vec3::new(-sx as f32, -sy as f32, 1.0).normalize()
     }
 
@@ -341,19 +344,19 @@ fn sample_visible_slope_beckmann(tan_theta: f64, u: f64) -> f64 {
         6.0
     };
     // H's two parts, with e = e^{−x²}; at x = ±6 from constants (erfc(6) and e^{−36}).
-    static AT_6: LazyLock<(f64, f64)> = LazyLock::new(|| (erfc(6.0), (-36.0f64).exp()));
+    static AT_6: LazyLock<(f64, f64)> = LazyLock::new(|| (erfc(6.0), crate::math::exp(-36.0)));
     let (erfc_6, e_36) = *AT_6;
     let gauss = |x: f64| 0.5 * SQRT_PI * erfc(-x);
     let h_lo = 0.5 * SQRT_PI * erfc_6 + 0.5 * tan_theta * e_36;
     let (gauss_hi, tilt_hi) = if hi == 6.0 {
         (0.5 * SQRT_PI * (2.0 - erfc_6), 0.5 * tan_theta * e_36)
     } else {
-        (gauss(hi), 0.5 * tan_theta * (-hi * hi).exp())
+        (gauss(hi), 0.5 * tan_theta * crate::math::exp(-hi * hi))
     };
     let target = h_lo + u * (gauss_hi + tilt_hi - h_lo);
     let x_gauss = erfinv_approx((2.0 * u - 1.0).clamp(-1.0 + 1e-16, 1.0 - 1e-16));
     let mut x = if tan_theta > 0.0 {
-        let x_tilt = -(-u.max(1e-300).ln()).sqrt();
+        let x_tilt = -(-crate::math::ln(u.max(1e-300))).sqrt();
         (gauss_hi * x_gauss + tilt_hi * x_tilt) / (gauss_hi + tilt_hi)
     } else {
         x_gauss
@@ -362,7 +365,7 @@ fn sample_visible_slope_beckmann(tan_theta: f64, u: f64) -> f64 {
         x = 0.5 * (lo + hi);
     }
     for _ in 0..64 {
-        let e = (-x * x).exp();
+        let e = crate::math::exp(-x * x);
         let f = gauss(x) + 0.5 * tan_theta * e - target;
         if f > 0.0 {
             hi = x;

@@ -147,9 +147,9 @@ impl BsdfModel for Phong {
             let r = Vec3::new(-wi.x, -wi.y, wi.z);
             let cos_a = u2.y.powf(1.0 / (self.exponent + 1.0));
             let sin_a = (1.0 - cos_a * cos_a).max(0.0).sqrt();
-            let phi = 2.0 * PI * u2.x;
+            let (sin_phi, cos_phi) = crate::math::sin_cosf(2.0 * PI * u2.x);
             let (t, b) = r.any_orthonormal_pair();
-            let wo = (t * phi.cos() + b * phi.sin()) * sin_a + r * cos_a;
+            let wo = (t * cos_phi + b * sin_phi) * sin_a + r * cos_a;
             if wo.z <= 0.0 {
                 return None;
             }

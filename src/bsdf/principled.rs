@@ -345,7 +345,7 @@ impl Gtr1 {
     fn d(&self, m: Vec3) -> f32 {
         let a2 = self.alpha * self.alpha;
         let c2 = m.z * m.z;
-        let r = (a2 - 1.0) / (PI * a2.ln() * (1.0 + (a2 - 1.0) * c2));
+        let r = (a2 - 1.0) / (PI * crate::math::lnf(a2) * (1.0 + (a2 - 1.0) * c2));
         if r * m.z > 1e-20 {
             r
         } else {
@@ -363,7 +363,7 @@ impl Gtr1 {
 
     fn sample(&self, u: Vec2) -> Vec3 {
         let a2 = self.alpha * self.alpha;
-        let (sin_phi, cos_phi) = (2.0 * PI * u.x).sin_cos();
+        let (sin_phi, cos_phi) = crate::math::sin_cosf(2.0 * PI * u.x);
         let cos2 = (1.0 - a2.powf(1.0 - u.y)) / (1.0 - a2);
         let sin_t = (1.0 - cos2).max(0.0).sqrt();
         Vec3::new(cos_phi * sin_t, sin_phi * sin_t, cos2.max(0.0).sqrt())

@@ -3,6 +3,7 @@
 
 use super::{file_name, parse_define};
 use anyhow::{bail, Context, Result};
+use penumbra::display::{Frame, LiveView};
 use penumbra::io::exr;
 use penumbra::render::Job;
 use std::path::PathBuf;
@@ -49,6 +50,16 @@ pub(crate) struct ConvergeArgs {
     /// Worker threads (default: one per core).
     #[arg(long)]
     threads: Option<usize>,
+    /// Show each ladder as it converges in the tev image viewer listening at HOST:PORT: an
+    /// image per ladder, named after the scene, the swept value and the seed, updated after
+    /// its steps (at most every --display-every). If tev is not there or goes away: one
+    /// warning, and the ladders go on.
+    #[arg(long, value_name = "HOST:PORT", value_parser = super::render::parse_display_server)]
+    display_server: Option<String>,
+    /// With --display-server: the least time between two images sent (e.g. 0.5s, 10s).
+    #[arg(long, value_name = "DURATION", value_parser = super::render::parse_duration,
+          requires = "display_server")]
+    display_every: Option<std::time::Duration>,
     /// No per-step progress lines on stderr.
     #[arg(short, long)]
     quiet: bool,
@@ -131,6 +142,22 @@ pub(crate) fn run_converge(args: ConvergeArgs) -> Result<()> {
             }
         }
     }
+    let live = args
+        .display_server
+        .as_deref()
+        .map(|address| {
+            LiveView::start(
+                address,
+                args.display_every
+                    .unwrap_or(penumbra::display::DEFAULT_INTERVAL),
+                std::sync::Arc::new(|m: &str| eprintln!("{m}")),
+            )
+        })
+        .transpose()?;
+    let stem = args
+        .scene
+        .file_stem()
+        .map_or_else(|| "penumbra".into(), |s| s.to_string_lossy().into_owned());
     let mut results: Vec<SeriesResult> = Vec::new();
     for variant in &variants {
         let job = Job::build(&variant.description)?;
@@ -148,6 +175,14 @@ pub(crate) fn run_converge(args: ConvergeArgs) -> Result<()> {
             };
             let quiet = args.quiet;
             let max_seconds = args.max_seconds;
+            // The live image of this ladder: each step's film if one is due, and the last
+            // step's once the ladder ends.
+            let image_name = if variant.label.is_empty() {
+                format!("{stem} seed {seed}")
+            } else {
+                format!("{stem} {} seed {seed}", variant.label)
+            };
+            let mut unsent: Option<Frame> = None;
             let run = ex::run_one(
                 &job,
                 &steps,
@@ -155,7 +190,16 @@ pub(crate) fn run_converge(args: ConvergeArgs) -> Result<()> {
                 args.threads,
                 &reference,
                 max_seconds,
-                &mut |s| {
+                &mut |s, film| {
+                    if let Some(live) = &live {
+                        let frame = Frame::from_film(&image_name, film, false);
+                        if live.due() {
+                            live.send(frame);
+                            unsent = None;
+                        } else {
+                            unsent = Some(frame);
+                        }
+                    }
                     if !quiet {
                         eprintln!(
                             "  {label}: {:>6} spp {:>9.3} s {:>7.3} Mpath/s  RMSE {:.4e}  \
@@ -173,6 +217,9 @@ pub(crate) fn run_converge(args: ConvergeArgs) -> Result<()> {
                     }
                 },
             )?;
+            if let (Some(live), Some(frame)) = (&live, unsent) {
+                live.send(frame);
+            }
             runs.push(run);
         }
         results.push(SeriesResult {
@@ -182,6 +229,9 @@ pub(crate) fn run_converge(args: ConvergeArgs) -> Result<()> {
         });
     }
 
+    if let Some(live) = live {
+        live.finish(None);
+    }
     let command = std::iter::once("penumbra".to_string())
         .chain(std::env::args().skip(1))
         .collect::<Vec<_>>()

@@ -15,6 +15,42 @@ fn stats_json(fields: &[(&str, String)]) -> String {
     format!("{{\n{}\n}}\n", body.join(",\n"))
 }
 
+/// The lane engine's utilisation for the summary line (empty when it did not run).
+pub(super) fn lane_summary(lanes: &penumbra::integrator::lanes::LaneStats) -> String {
+    if lanes.iterations == 0 {
+        return String::new();
+    }
+    format!(
+        " (lanes busy: {:.1}% at intersection, {:.1}% at scattering)",
+        100.0 * lanes.utilisation(),
+        100.0 * lanes.scatter_utilisation()
+    )
+}
+
+/// The lane engine's counters as JSON fields (none when it did not run): utilisation at
+/// the intersection and scatter steps (active lanes / width), iterations, and the
+/// histograms of active lanes per iteration and of active lanes by path depth.
+fn lane_json(lanes: &penumbra::integrator::lanes::LaneStats) -> Vec<(&'static str, String)> {
+    if lanes.iterations == 0 {
+        return Vec::new();
+    }
+    let list = |v: &[u64]| {
+        let items: Vec<String> = v.iter().map(|x| x.to_string()).collect();
+        format!("[{}]", items.join(", "))
+    };
+    vec![
+        ("lane_width", lanes.width.to_string()),
+        ("lane_iterations", lanes.iterations.to_string()),
+        ("lane_utilisation", format!("{:.6}", lanes.utilisation())),
+        (
+            "lane_scatter_utilisation",
+            format!("{:.6}", lanes.scatter_utilisation()),
+        ),
+        ("lane_iterations_by_active_lanes", list(&lanes.by_active)),
+        ("lane_active_lanes_by_depth", list(&lanes.by_depth)),
+    ]
+}
+
 /// Fails unless every one of `outputs` (path, what it is) can be written: its directory
 /// exists and takes a new file. Checked before any scene data is loaded, so that a long
 /// render never ends in an unwritable path.
@@ -95,7 +131,7 @@ pub(super) fn write_image(o: &ImageOutput) -> Result<()> {
         penumbra::io::png::write_preview(png, width, height, &image.rgb, 1.0)?;
     }
     if let Some(path) = o.stats_json_path {
-        let json = stats_json(&[
+        let mut fields = vec![
             ("width", width.to_string()),
             ("height", height.to_string()),
             ("spp", spp_done.to_string()),
@@ -112,19 +148,24 @@ pub(super) fn write_image(o: &ImageOutput) -> Result<()> {
             ("mean_path_length", format!("{mean_len:.6}")),
             ("rr_terminated_fraction", format!("{rr_frac:.6}")),
             ("nonfinite_samples", stats.nonfinite.to_string()),
+            ("engine", format!("\"{}\"", stats.engine)),
             ("penumbra_version", format!("\"{}\"", penumbra::VERSION)),
-        ]);
+        ];
+        fields.extend(lane_json(&stats.lanes));
+        let json = stats_json(&fields);
         penumbra::io::atomic::write_bytes(path, json.as_bytes())
             .with_context(|| format!("{}: cannot write statistics", path.display()))?;
     }
     if !o.quiet {
         eprintln!(
-            "{}x{}, {} spp, {:.2} s, {:.2} Mpath/s, {:.2} Mray/s, mean path length {:.2}, RR ended {:.1}%, \
-             {} non-finite samples dropped, stopped: {} -> {}",
+            "{}x{}, {} spp, {:.2} s, engine {}{}, {:.2} Mpath/s, {:.2} Mray/s, mean path length {:.2}, \
+             RR ended {:.1}%, {} non-finite samples dropped, stopped: {} -> {}",
             width,
             height,
             spp_done,
             stats.seconds,
+            stats.engine,
+            lane_summary(&stats.lanes),
             stats.paths as f64 / secs / 1e6,
             rays_per_s / 1e6,
             mean_len,

@@ -5,10 +5,12 @@ use super::output::{check_outputs, render_attributes, write_image, ImageOutput};
 use super::parse_define;
 use anyhow::{bail, Context, Result};
 use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
+use penumbra::display::{Frame, LiveView};
 use penumbra::io::exr;
 use penumbra::progressive;
-use penumbra::render::Job;
+use penumbra::render::{Engine, Job};
 use penumbra::scene::Scene;
+use penumbra::simd::Backend;
 use std::io::IsTerminal;
 use std::path::{Path, PathBuf};
 use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
@@ -44,6 +46,18 @@ pub(crate) struct RenderArgs {
     /// Worker threads (default: one per core).
     #[arg(long)]
     threads: Option<usize>,
+    /// The engine that renders camera paths: `scalar` (one path at a time) or `lanes` (16
+    /// paths side by side in SIMD lanes, AVX-512 or AVX2 detected at run time; the same
+    /// image bit for bit). The lane engine covers the path integrator; other integrators
+    /// run on the scalar engine, and the summary line says which ran. Default scalar: at
+    /// this stage the lane engine is slower.
+    #[arg(long, value_enum, default_value_t = EngineArg::Scalar)]
+    engine: EngineArg,
+    /// The lane engine's backend instead of the widest this processor runs: avx512, avx2,
+    /// portable or scalar (width 1). For tests and measurements (valgrind cannot run
+    /// AVX-512).
+    #[arg(long, hide = true, value_name = "NAME")]
+    lane_backend: Option<String>,
     /// Also write a tone-mapped sRGB PNG preview.
     #[arg(long, value_name = "PNG")]
     preview: Option<PathBuf>,
@@ -87,10 +101,43 @@ pub(crate) struct RenderArgs {
     #[arg(long, value_name = "I/N", value_parser = parse_part,
           conflicts_with_all = ["time_limit", "target_rel_error", "variance", "preview"])]
     part: Option<(u32, u32)>,
+    /// Show the render as it converges in the tev image viewer listening at HOST:PORT
+    /// (tev's default: localhost:14158): an image named after the scene and seed, updated
+    /// after each pass (at most every --display-every); with --variance a second layer,
+    /// rel_error, each pixel's relative standard error. If tev is not there or goes away:
+    /// one warning, and the render goes on.
+    #[arg(long, value_name = "HOST:PORT", value_parser = parse_display_server,
+          conflicts_with = "part")]
+    display_server: Option<String>,
+    /// With --display-server: the least time between two images sent (e.g. 0.5s, 10s).
+    #[arg(long, value_name = "DURATION", value_parser = parse_duration,
+          requires = "display_server")]
+    display_every: Option<Duration>,
     /// With --part: the parts extend a render of this many spp (a multiple of the pass size)
     /// up to --spp, to be merged with that render's parts.
     #[arg(long, value_name = "SPP", requires = "part", default_value_t = 0)]
     start_spp: u64,
+}
+
+#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
+enum EngineArg {
+    Scalar,
+    Lanes,
+}
+
+/// The engine of `--engine` and `--lane-backend`.
+fn engine(args: &RenderArgs) -> Result<Engine> {
+    let backend = match &args.lane_backend {
+        None => None,
+        Some(name) => Some(Backend::from_name(name).with_context(|| {
+            format!("unknown lane backend '{name}' (avx512, avx2, portable or scalar)")
+        })?),
+    };
+    Ok(match (args.engine, backend) {
+        (EngineArg::Scalar, None) => Engine::Scalar,
+        (EngineArg::Scalar, Some(_)) => bail!("--lane-backend needs --engine lanes"),
+        (EngineArg::Lanes, b) => Engine::Lanes(b),
+    })
 }
 
 fn parse_part(s: &str) -> std::result::Result<(u32, u32), String> {
@@ -106,7 +153,11 @@ fn parse_part(s: &str) -> std::result::Result<(u32, u32), String> {
     Ok((i, n))
 }
 
-fn parse_duration(s: &str) -> std::result::Result<Duration, String> {
+pub(super) fn parse_display_server(s: &str) -> std::result::Result<String, String> {
+    penumbra::display::parse_address(s)
+}
+
+pub(super) fn parse_duration(s: &str) -> std::result::Result<Duration, String> {
     let (num, unit) = match s.find(|c: char| c.is_ascii_alphabetic()) {
         Some(i) => s.split_at(i),
         None => (s, "s"),
@@ -241,6 +292,9 @@ pub(crate) fn run_render(args: RenderArgs) -> Result<()> {
         desc.use_integrator(kind)?;
     }
     let mut job = Job::build(&desc)?;
+    job.engine = engine(&args)?;
+    // (fails here, before any work, if a named lane backend cannot run)
+    let engine_ran = job.engine.resolve(&job.integrator)?;
     for w in &job.scene.warnings {
         eprintln!("warning: {w}");
     }
@@ -297,7 +351,7 @@ pub(crate) fn run_render(args: RenderArgs) -> Result<()> {
         stop: Some(signals.stop.clone()),
     };
     if let penumbra::integrator::Integrator::Aov(aov) = &job.integrator {
-        return render_aov(&job.scene, aov, &args, spp, seed);
+        return render_aov(&job.scene, aov, &args, spp, seed, engine_ran);
     }
     if let Some((index, count)) = args.part {
         let plan = progressive::PartPlan {
@@ -352,8 +406,10 @@ pub(crate) fn run_render(args: RenderArgs) -> Result<()> {
             let secs = part.stats.seconds.max(1e-9);
             eprintln!(
                 "part {index}/{count} of {spp} spp: samples {a}..{b} of every pixel, {:.2} s, \
-                 {:.2} Mpath/s, {} non-finite samples dropped -> {}",
+                 engine {}{}, {:.2} Mpath/s, {} non-finite samples dropped -> {}",
                 part.stats.seconds,
+                engine_ran,
+                super::output::lane_summary(&part.stats.lanes),
                 part.stats.paths as f64 / secs / 1e6,
                 part.stats.nonfinite,
                 args.output.display()
@@ -375,12 +431,19 @@ pub(crate) fn run_render(args: RenderArgs) -> Result<()> {
         );
         b
     };
+    let live = match &args.display_server {
+        None => None,
+        Some(address) => Some(live_view(&args, address, &job, seed, &bar)?),
+    };
     let warned = AtomicBool::new(false);
     let (progress, reason) = progressive::render_progressive(&job, &settings, resume, &|p| {
         warn_checkpoint(p.checkpoint_error.as_deref(), &warned, &|m| {
             bar.suspend(|| eprintln!("{m}"))
         });
-        bar.set_position(p.samples * pixels)
+        bar.set_position(p.samples * pixels);
+        if let Some(live) = &live {
+            live.offer(&p.film);
+        }
     })?;
     bar.finish_and_clear();
     let interrupted = match signals.received() {
@@ -406,6 +469,10 @@ pub(crate) fn run_render(args: RenderArgs) -> Result<()> {
         stats_json_path: args.stats.as_deref(),
         quiet: args.quiet,
     })?;
+    // The final image, once the EXR is written: the last image tev shows is the EXR's.
+    if let Some(live) = live {
+        live.finish(&progress.film);
+    }
     let checkpoint_note = match (&settings.checkpoint, &progress.checkpoint_error) {
         (None, _) => String::new(),
         (Some(cp), None) => format!(
@@ -432,6 +499,63 @@ pub(crate) fn run_render(args: RenderArgs) -> Result<()> {
         );
     }
     strict_check(args.strict, progress.stats.nonfinite, &args.output)
+}
+
+/// A render's live view in tev (`--display-server`): its image name and layers, and the
+/// sender.
+struct Live {
+    view: LiveView,
+    name: String,
+    rel_error: bool,
+}
+
+impl Live {
+    /// After a pass: the film as a new image, if one is due.
+    fn offer(&self, film: &penumbra::film::Film) {
+        if self.view.due() {
+            self.view
+                .send(Frame::from_film(&self.name, film, self.rel_error));
+        }
+    }
+
+    /// The final film, written before this returns (or given up on, with a warning).
+    fn finish(self, film: &penumbra::film::Film) {
+        let last = Frame::from_film(&self.name, film, self.rel_error);
+        self.view.finish(Some(last));
+    }
+}
+
+/// Starts the live view of `--display-server`: the image is named after the scene file and
+/// the seed (so that renders of several scenes or seeds sit side by side in tev), with the
+/// relative error layer under --variance (not for sppm, which has no per-pixel variance).
+/// Its warnings go around the progress bar.
+fn live_view(
+    args: &RenderArgs,
+    address: &str,
+    job: &Job,
+    seed: u64,
+    bar: &ProgressBar,
+) -> Result<Live> {
+    let bar = bar.clone();
+    let warn: penumbra::display::Warn = Arc::new(move |m: &str| bar.suspend(|| eprintln!("{m}")));
+    let sppm = matches!(job.integrator, penumbra::integrator::Integrator::Sppm(_));
+    if args.variance && sppm {
+        warn("warning: sppm has no per-pixel variance: the live view shows R, G, B only");
+    }
+    let stem = args
+        .scene
+        .file_stem()
+        .map_or_else(|| "penumbra".into(), |s| s.to_string_lossy().into_owned());
+    Ok(Live {
+        view: LiveView::start(
+            address,
+            args.display_every
+                .unwrap_or(penumbra::display::DEFAULT_INTERVAL),
+            warn,
+        )?,
+        name: format!("{stem} seed {seed}"),
+        rel_error: args.variance && !sppm,
+    })
 }
 
 /// Prints one warning when a checkpoint write fails (after its retries), and no more until
@@ -468,6 +592,7 @@ fn render_aov(
     args: &RenderArgs,
     spp: u32,
     seed: u64,
+    engine: penumbra::render::EngineRan,
 ) -> Result<()> {
     if args.resume
         || args.part.is_some()
@@ -477,11 +602,12 @@ fn render_aov(
         || args.target_rel_error.is_some()
         || args.variance
         || args.preview.is_some()
+        || args.display_server.is_some()
     {
         bail!(
             "the aov integrator renders its channels in one run: --resume, --part, \
-             --checkpoint, --time-limit, --target-rel-error, --variance and --preview do not \
-             apply"
+             --checkpoint, --time-limit, --target-rel-error, --variance, --preview and \
+             --display-server do not apply"
         );
     }
     let (channels, stats) = penumbra::render::render_channels(scene, aov, spp, seed, args.threads)?;
@@ -494,11 +620,12 @@ fn render_aov(
     if !args.quiet {
         let names: Vec<&str> = channels.iter().map(|(n, _)| n.as_str()).collect();
         eprintln!(
-            "{}x{}, {} spp, {:.2} s, channels {}, {} non-finite samples dropped -> {}",
+            "{}x{}, {} spp, {:.2} s, engine {}, channels {}, {} non-finite samples dropped -> {}",
             scene.width,
             scene.height,
             spp,
             stats.seconds,
+            engine,
             names.join(" "),
             stats.nonfinite,
             args.output.display()

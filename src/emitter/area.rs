@@ -13,10 +13,13 @@
 //! ([`ShapeGeometry::at_uv`]), p_A = p_uv / |∂p/∂u × ∂p/∂v|, with the geometric normal for the
 //! solid-angle conversion.
 
-use super::{DirectionSample, EmitterPosition, EmitterRay};
+use super::{DirectionSample, DirectionSamples, EmitterPosition, EmitterRay};
 use crate::geometry::{offset_ray_origin, Frame, Ray};
 use crate::sampling::{square_to_cosine_hemisphere, square_to_uniform_cone};
-use crate::shape::{Shape, ShapeGeometry, Sphere, SurfaceInteraction, UvGrid};
+use crate::shape::{
+    Mesh, PositionSamples, Shape, ShapeGeometry, Sphere, SurfaceInteraction, UvGrid,
+};
+use crate::simd::{LaneF32, Lanes, Scalar, V3};
 use crate::spectrum::Spectrum;
 use crate::texture::{Texture, TextureContext};
 use glam::{DVec3, Vec2, Vec3};
@@ -62,6 +65,61 @@ fn texture_context<'a>(si: &SurfaceInteraction, geometry: &'a ShapeGeometry) -> 
             _ => None,
         },
     }
+}
+
+/// A point uniform by area on `mesh`, seen from `p_ref`, lane by lane where `m` is set.
+#[inline(always)]
+fn by_area_lanes<L: Lanes>(
+    l: L,
+    m: L::M,
+    mesh: &Mesh,
+    p_ref: V3<L::F>,
+    u: (L::F, L::F),
+    radiance: V3<L::F>,
+) -> (L::M, DirectionSamples<L>) {
+    let (ok, ps) = mesh.sample_position_lanes(l, m, u.0, u.1);
+    to_solid_angle_lanes(l, ok, &ps, p_ref, radiance)
+}
+
+/// Points sampled by area (`ps`, where `m` is set) as directions from `p_ref`, lane by lane:
+/// the unit direction, the distance, and the area density converted to solid angle,
+/// p_A r² / cos θ_light (Veach 1997, eq. 8.10). A lane fails where the point coincides with
+/// `p_ref` or the distance overflows, where it sees the emitter's back side (which emits
+/// nothing), or where the density is not finite and positive.
+#[inline(always)]
+fn to_solid_angle_lanes<L: Lanes>(
+    l: L,
+    m: L::M,
+    ps: &PositionSamples<L>,
+    p_ref: V3<L::F>,
+    radiance: V3<L::F>,
+) -> (L::M, DirectionSamples<L>) {
+    let zero = l.splat(0.0);
+    let v = ps.p - p_ref;
+    let dist2 = v.length_squared();
+    let dist = dist2.sqrt();
+    let d = v / dist;
+    let cos_light = ps.n.dot(-d);
+    let pdf = ps.pdf * dist2 / cos_light;
+    let ok = m
+        & dist2.cmp_ne(zero)
+        & dist2.is_finite()
+        & cos_light.cmp_gt(zero)
+        & pdf.is_finite()
+        & pdf.cmp_gt(zero);
+    (
+        ok,
+        DirectionSamples {
+            p: ps.p,
+            p_error: ps.p_error,
+            n: ps.n,
+            d,
+            dist,
+            pdf,
+            radiance,
+            delta: l.mask(0),
+        },
+    )
 }
 
 impl AreaEmitter {
@@ -120,29 +178,48 @@ impl AreaEmitter {
                 return self.sample_sphere_cone(radiance, s, p_ref, u, cone);
             }
         }
-        let ps = geometry.sample_position(u)?;
-        let v = ps.p - p_ref;
-        let dist2 = v.length_squared();
-        if dist2 == 0.0 || !dist2.is_finite() {
-            return None;
+        // Uniform by area, converted to solid angle: the width-1 instance of the lane
+        // kernel (meshes), or of its conversion (the analytic shapes).
+        let (ok, ds) = match geometry {
+            ShapeGeometry::Mesh(mesh) => by_area_lanes(
+                Scalar,
+                true,
+                mesh,
+                p_ref.into(),
+                (u.x, u.y),
+                radiance.into(),
+            ),
+            _ => {
+                let ps = geometry.sample_position(u)?;
+                let mut pss = PositionSamples::zero(Scalar);
+                pss.set_lane(0, &ps);
+                to_solid_angle_lanes(Scalar, true, &pss, p_ref.into(), radiance.into())
+            }
+        };
+        ok.then(|| ds.lane(0))
+    }
+
+    /// [`AreaEmitter::sample_direction`] lane by lane where `m` is set, for a constant
+    /// radiance on a mesh (the Cornell family's area lights): a point uniform by area
+    /// ([`Mesh::sample_position_lanes`]) converted to solid angle. `None` for every other
+    /// emitter (the caller runs the scalar code lane by lane): spheres sample the cone they
+    /// subtend in f64 with sin and cos, and textured radiance searches the texture.
+    #[inline(always)]
+    pub fn sample_direction_lanes<L: Lanes>(
+        &self,
+        l: L,
+        m: L::M,
+        p_ref: V3<L::F>,
+        u: (L::F, L::F),
+        shapes: &[Shape],
+    ) -> Option<(L::M, DirectionSamples<L>)> {
+        match (&self.radiance, &shapes[self.shape as usize].geometry) {
+            (Texture::Constant { rgb, .. }, ShapeGeometry::Mesh(mesh)) => {
+                let radiance = V3::new(l.splat(rgb.x), l.splat(rgb.y), l.splat(rgb.z));
+                Some(by_area_lanes(l, m, mesh, p_ref, u, radiance))
+            }
+            _ => None,
         }
-        let dist = dist2.sqrt();
-        let d = v / dist;
-        let cos_light = ps.n.dot(-d);
-        if cos_light <= 0.0 {
-            return None; // back side: emits nothing towards p_ref
-        }
-        let pdf = ps.pdf * dist2 / cos_light;
-        (pdf.is_finite() && pdf > 0.0).then_some(DirectionSample {
-            p: ps.p,
-            p_error: ps.p_error,
-            n: ps.n,
-            d,
-            dist,
-            pdf,
-            radiance,
-            delta: false,
-        })
     }
 
     /// Mitsuba's strategy for a spatially varying radiance: uv by the texture, mapped onto

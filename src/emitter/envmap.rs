@@ -93,12 +93,14 @@ impl EnvMapEmitter {
     /// (u, v) of a world direction, and sin θ.
     fn uv(&self, d: Vec3) -> (Vec2, f32) {
         let l = (self.to_local * d).normalize_or_zero();
-        let u = (l.x.atan2(-l.z) * (0.5 / PI)).rem_euclid(1.0);
+        let u = (crate::math::atan2f(l.x, -l.z) * (0.5 / PI)).rem_euclid(1.0);
         // θ and sin θ from the other two components: √(1 − y²) and acos(y) cancel
         // catastrophically near the poles (26 of 300k samples had a pdf() 0.1–8% off the
         // sampled one there).
-        let sin_t = l.x.hypot(l.z);
-        let v = sin_t.atan2(l.y) / PI;
+        // √(x² + z²) in f64, rounded once (as glibc's hypotf computes it, without libm)
+        let (x, z) = (l.x as f64, l.z as f64);
+        let sin_t = (x * x + z * z).sqrt() as f32;
+        let v = crate::math::atan2f(sin_t, l.y) / PI;
         (Vec2::new(u, v), sin_t)
     }
 
@@ -125,11 +127,12 @@ impl EnvMapEmitter {
         let uu = (cell_uv.x + 0.5 / self.width as f32).rem_euclid(1.0);
         let theta = cell_uv.y * PI;
         let phi = uu * 2.0 * PI;
-        let (sin_t, cos_t) = theta.sin_cos();
+        let (sin_t, cos_t) = crate::math::sin_cosf(theta);
         if sin_t <= 0.0 {
             return None;
         }
-        let local = Vec3::new(sin_t * phi.sin(), cos_t, -sin_t * phi.cos());
+        let (sin_p, cos_p) = crate::math::sin_cosf(phi);
+        let local = Vec3::new(sin_t * sin_p, cos_t, -sin_t * cos_p);
         let d = (self.to_world * local).normalize();
         let pdf = pdf_uv / (2.0 * PI * PI * sin_t);
         (pdf.is_finite() && pdf > 0.0).then(|| DirectionSample {

@@ -22,6 +22,7 @@ pub use spot::SpotEmitter;
 use crate::geometry::{Frame, Ray};
 use crate::sampling::square_to_uniform_disk_concentric;
 use crate::shape::Shape;
+use crate::simd::{for_each_lane, LaneF32, LaneMask, Lanes, Scalar, V3};
 use crate::spectrum::Spectrum;
 use glam::{Vec2, Vec3};
 
@@ -140,6 +141,106 @@ impl DirectionSample {
     }
 }
 
+/// Direction samples, one per lane ([`DirectionSample`] in lanes).
+#[derive(Clone, Copy, Debug)]
+pub struct DirectionSamples<L: Lanes> {
+    pub p: V3<L::F>,
+    pub p_error: V3<L::F>,
+    pub n: V3<L::F>,
+    pub d: V3<L::F>,
+    pub dist: L::F,
+    pub pdf: L::F,
+    pub radiance: V3<L::F>,
+    pub delta: L::M,
+}
+
+impl<L: Lanes> DirectionSamples<L> {
+    #[inline(always)]
+    pub fn zero(l: L) -> Self {
+        let z = l.splat(0.0);
+        let v = V3::splat(z);
+        DirectionSamples {
+            p: v,
+            p_error: v,
+            n: v,
+            d: v,
+            dist: z,
+            pdf: z,
+            radiance: v,
+            delta: l.mask(0),
+        }
+    }
+
+    /// Lane `i` as a [`DirectionSample`].
+    #[inline(always)]
+    pub fn lane(&self, i: usize) -> DirectionSample {
+        DirectionSample {
+            p: self.p.lane(i),
+            p_error: self.p_error.lane(i),
+            n: self.n.lane(i),
+            d: self.d.lane(i),
+            dist: self.dist.lane(i),
+            pdf: self.pdf.lane(i),
+            radiance: self.radiance.lane(i),
+            delta: self.delta.bits() >> i & 1 != 0,
+        }
+    }
+
+    #[inline(always)]
+    pub fn set_lane(&mut self, l: L, i: usize, ds: &DirectionSample) {
+        self.p.set_lane(i, ds.p);
+        self.p_error.set_lane(i, ds.p_error);
+        self.n.set_lane(i, ds.n);
+        self.d.set_lane(i, ds.d);
+        self.dist.set_lane(i, ds.dist);
+        self.pdf.set_lane(i, ds.pdf);
+        self.radiance.set_lane(i, ds.radiance);
+        let bit = l.mask(1 << i);
+        self.delta = if ds.delta {
+            self.delta | bit
+        } else {
+            self.delta.and_not(bit)
+        };
+    }
+
+    /// `if m { a } else { b }` lane by lane.
+    #[inline(always)]
+    pub fn select(m: L::M, a: &Self, b: &Self) -> Self {
+        DirectionSamples {
+            p: V3::select(m, a.p, b.p),
+            p_error: V3::select(m, a.p_error, b.p_error),
+            n: V3::select(m, a.n, b.n),
+            d: V3::select(m, a.d, b.d),
+            dist: L::F::select(m, a.dist, b.dist),
+            pdf: L::F::select(m, a.pdf, b.pdf),
+            radiance: V3::select(m, a.radiance, b.radiance),
+            delta: (m & a.delta) | b.delta.and_not(m),
+        }
+    }
+
+    /// Emitters at infinity (directional, environment): `dist` is infinite.
+    #[inline(always)]
+    pub fn is_infinite(&self) -> L::M {
+        !(self.dist.is_finite() | self.dist.is_nan())
+    }
+}
+
+impl From<DirectionSample> for DirectionSamples<Scalar> {
+    #[inline(always)]
+    fn from(ds: DirectionSample) -> Self {
+        DirectionSamples {
+            p: ds.p.into(),
+            p_error: ds.p_error.into(),
+            n: ds.n.into(),
+            d: ds.d.into(),
+            dist: ds.dist,
+            pdf: ds.pdf,
+            radiance: ds.radiance.into(),
+            delta: ds.delta,
+        }
+    }
+}
+
 #[derive(Clone, Debug)]
 pub enum Emitter {
     Area(AreaEmitter),
@@ -182,6 +283,40 @@ impl Emitter {
             Emitter::Constant(e) => e.sample_direction(u),
             Emitter::EnvMap(e) => e.sample_direction(u),
         }
+    }
+
+    /// [`Emitter::sample_direction`] lane by lane where `m` is set: the lane kernel of a
+    /// constant area emitter on a mesh ([`AreaEmitter::sample_direction_lanes`]), every
+    /// other emitter's scalar code lane by lane. The mask of the lanes that got a sample.
+    #[inline(always)]
+    pub fn sample_direction_lanes<L: Lanes>(
+        &self,
+        l: L,
+        m: L::M,
+        p_ref: V3<L::F>,
+        u: (L::F, L::F),
+        shapes: &[Shape],
+    ) -> (L::M, DirectionSamples<L>) {
+        if let Emitter::Area(e) = self {
+            if let Some(r) = e.sample_direction_lanes(l, m, p_ref, u, shapes) {
+                return r;
+            }
+        }
+        let mut out = DirectionSamples::zero(l);
+        let mut ok = 0u32;
+        for_each_lane(
+            L::WIDTH,
+            m,
+            #[inline(always)]
+            |i| {
+                let ui = Vec2::new(u.0.lane(i), u.1.lane(i));
+                if let Some(ds) = self.sample_direction(p_ref.lane(i), ui, shapes) {
+                    out.set_lane(l, i, &ds);
+                    ok |= 1 << i;
+                }
+            },
+        );
+        (l.mask(ok), out)
     }
 
     /// A ray leaving the emitter, drawn from `u_pos` (its origin) and `u_dir` (its direction);

@@ -77,7 +77,8 @@ impl SpotEmitter {
         } else if cos_theta >= self.cos_beam {
             1.0
         } else {
-            (self.cutoff_angle - cos_theta.clamp(-1.0, 1.0).acos()) * self.inv_transition_width
+            (self.cutoff_angle - crate::math::acosf(cos_theta.clamp(-1.0, 1.0)))
+                * self.inv_transition_width
         }
     }
 

@@ -4,6 +4,29 @@
 //! radius; the weights are divided out at the end. Each render tile accumulates into its own
 //! [`FilmTile`] (its pixels plus a border of the filter radius), and tiles are merged in a
 //! fixed order, so the sums are bit-identical whatever the thread count.
+//!
+//! # The order of accumulation (issue 42)
+//!
+//! Within one pass the sums are *not* independent of the order of the samples: a tile adds
+//! each sample's w·f, w·f², w²·f, w²·f², w, w² and w³ to its pixels' f64 sums one sample after
+//! another ([`FilmTile::add_sample`]), and f64 addition is not associative, so the same
+//! samples added in another order can give other last bits. [`Film::merge`] then adds the
+//! tiles' sums (which overlap by the filter's border) in the fixed tile order of
+//! `render::render`, and only the pass film is added exactly ([`ExactFilm::add`]: the
+//! grouping of passes and parts does not matter). So an image is a function of its samples
+//! only because `render::render_tile` adds them in one canonical order: the tile's pixels
+//! row by row (y, then x, from the tile's corner, the border of `sample_border` included),
+//! and per pixel the sample indices ascending, non-finite samples left out (counted).
+//!
+//! An engine whose paths finish out of order (the lane engine) must keep that order per
+//! tile: store each finished sample's film position and value (20 B) at its canonical index
+//! (pixel within the tile × spp + sample), and call [`FilmTile::add_sample`] in index order,
+//! either when the tile's samples are all done (at most 16 × 16 × 256 samples, 1.3 MB, for
+//! images of up to 32² pixels, where a pass holds 256 spp; 80 KB at 128²) or as a window
+//! that adds a sample once all before it are done. Making the tile's sums exact instead
+//! would cost 15 exact additions per pixel a sample reaches (12–20 ns each,
+//! docs/performance.md, 2026-12-02), several µs per sample with the default gaussian filter
+//! (16 pixels) against about 1 µs per path.
 
 use glam::{Vec2, Vec3};
 
@@ -65,7 +88,7 @@ impl Filter {
             Filter::Gaussian { stddev } => {
                 let a = -0.5 / (stddev * stddev);
                 let r = 4.0 * stddev;
-                ((a * x * x).exp() - (a * r * r).exp()).max(0.0)
+                (crate::math::exp(a * x * x) - crate::math::exp(a * r * r)).max(0.0)
             }
         }
     }

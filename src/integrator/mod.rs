@@ -5,6 +5,7 @@ pub mod aov;
 pub mod bdpt;
 pub mod build;
 pub mod direct;
+pub mod lanes;
 pub mod path;
 pub mod ptracer;
 pub mod radiosity;
@@ -75,6 +76,22 @@ pub enum Integrator {
 }
 
 impl Integrator {
+    /// The plugin name, as in a scene file (radiosity is penumbra's own).
+    pub fn name(&self) -> &'static str {
+        match self {
+            Integrator::Path(_) => "path",
+            Integrator::Direct(_) => "direct",
+            Integrator::Aov(_) => "aov",
+            Integrator::Whitted(_) => "whitted",
+            Integrator::Radiosity(_) => "radiosity",
+            Integrator::VolPath(_) => "volpath",
+            Integrator::VolPathMis(_) => "volpathmis",
+            Integrator::ParticleTracer(_) => "ptracer",
+            Integrator::Sppm(_) => "sppm",
+            Integrator::Bdpt(_) => "bdpt",
+        }
+    }
+
     #[inline]
     pub fn li(
         &self,

@@ -297,7 +297,7 @@ impl Layout {
                 Some(first[t] + row + 2 * j + down as u32)
             }
             ShapeCells::Sphere { nz, nphi, first } => {
-                let z = (std::f32::consts::PI * si.uv.y).cos();
+                let z = crate::math::sin_cosf(std::f32::consts::PI * si.uv.y).1;
                 let iz = (((1.0 - z) * 0.5 * *nz as f32) as u32).min(nz - 1);
                 let ip = ((si.uv.x * *nphi as f32).max(0.0) as u32).min(nphi - 1);
                 Some(first + iz * nphi + ip)
@@ -319,7 +319,7 @@ impl Layout {
                 let ph = phi[0] + (phi[1] - phi[0]) * u.y as f64;
                 let uv = Vec2::new(
                     (ph / (2.0 * PI64)) as f32,
-                    (zz.clamp(-1.0, 1.0).acos() / PI64) as f32,
+                    (crate::math::acos(zz.clamp(-1.0, 1.0)) / PI64) as f32,
                 );
                 s.at_uv(uv, cell.shape)
             }

@@ -12,6 +12,7 @@ pub mod mesh;
 pub mod ply;
 pub mod png;
 pub mod serialized;
+pub mod tev;
 pub mod vol;
 
 use std::fs::File;

@@ -116,7 +116,7 @@ impl Medium {
             MediumKind::Heterogeneous(h) => Vec3::splat(h.majorant),
         };
         let m = combined_extinction[channel];
-        let sampled_t = mint + (-(1.0 - u).ln() / m);
+        let sampled_t = mint + (-crate::math::lnf(1.0 - u) / m);
         let valid = active && sampled_t <= maxt;
         let maxt = if active { maxt } else { 0.0 };
         let p = ray.at(sampled_t);
@@ -167,7 +167,13 @@ impl Medium {
 /// sample is dropped and counted as non-finite, never turned into a transmittance.
 #[inline]
 pub fn transmittance(t: f32, sigma: Vec3) -> Vec3 {
-    let e = |s: f32| if s == 0.0 { 1.0 } else { (-t * s).exp() };
+    let e = |s: f32| {
+        if s == 0.0 {
+            1.0
+        } else {
+            crate::math::expf(-t * s)
+        }
+    };
     Vec3::new(e(sigma.x), e(sigma.y), e(sigma.z))
 }
 

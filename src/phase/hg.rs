@@ -47,7 +47,7 @@ impl HenyeyGreenstein {
             ((1.0 + g * g - s * s) / (2.0 * g)).clamp(-1.0, 1.0)
         } as f32;
         let sin_theta = (1.0 - cos_theta * cos_theta).max(0.0).sqrt();
-        let (sin_phi, cos_phi) = (2.0 * std::f32::consts::PI * u.y).sin_cos();
+        let (sin_phi, cos_phi) = crate::math::sin_cosf(2.0 * std::f32::consts::PI * u.y);
         let forward = Frame::from_normal(-wi);
         let wo = forward.to_world(Vec3::new(
             sin_theta * cos_phi,

@@ -243,6 +243,7 @@ fn parse_header(bytes: &[u8], path: &Path) -> Result<(CheckpointHeader, usize)> 
             },
             nonfinite,
             seconds,
+            ..Default::default()
         },
         filter,
         width: width as usize,

@@ -28,7 +28,7 @@ pub use parts::{
 
 use crate::error::{Error, Result};
 use crate::film::{ExactFilm, Film};
-use crate::render::{render, Job, RenderSettings, RenderStats};
+use crate::render::{render_with, Job, RenderSettings, RenderStats};
 use std::path::PathBuf;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::Arc;
@@ -293,7 +293,13 @@ pub fn render_progressive(
                 stats
             }
             _ => {
-                let out = render(scene, &job.integrator, &pass_settings, &|_, _| {})?;
+                let out = render_with(
+                    scene,
+                    &job.integrator,
+                    job.engine,
+                    &pass_settings,
+                    &|_, _| {},
+                )?;
                 let exact = &mut progress.exact;
                 pool.install(|| exact.add(&out.film))
                     .map_err(|e| Error::Invalid(e.to_string()))?;
@@ -304,6 +310,8 @@ pub fn render_progressive(
         progress.samples += spp as u64;
         progress.stats.paths += stats.paths;
         progress.stats.path += stats.path;
+        progress.stats.lanes += stats.lanes;
+        progress.stats.engine = stats.engine;
         progress.stats.nonfinite += stats.nonfinite;
         progress.stats.seconds += stats.seconds;
         if let Some(cp) = &settings.checkpoint {

@@ -7,7 +7,7 @@ use super::{
 };
 use crate::error::{Error, Result};
 use crate::film::ExactFilm;
-use crate::render::{render, Job, RenderSettings, RenderStats};
+use crate::render::{render_with, Job, RenderSettings, RenderStats};
 use std::path::{Path, PathBuf};
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::Arc;
@@ -175,9 +175,10 @@ pub fn render_part_with(
             break;
         }
         let spp = (pass as u64).min(b - at) as u32;
-        let out = render(
+        let out = render_with(
             scene,
             &job.integrator,
+            job.engine,
             &RenderSettings {
                 spp,
                 seed: settings.seed,
@@ -193,6 +194,8 @@ pub fn render_part_with(
             .map_err(|e| Error::Invalid(e.to_string()))?;
         part.stats.paths += out.stats.paths;
         part.stats.path += out.stats.path;
+        part.stats.lanes += out.stats.lanes;
+        part.stats.engine = out.stats.engine;
         part.stats.nonfinite += out.stats.nonfinite;
         part.stats.seconds += out.stats.seconds;
         at += spp as u64;

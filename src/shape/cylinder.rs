@@ -280,7 +280,7 @@ impl Cylinder {
     /// The point with surface coordinates `uv` (Mitsuba's `eval_parameterization`:
     /// φ = 2π u, height v along the axis).
     pub fn at_uv(&self, uv: Vec2, shape: u32) -> SurfaceInteraction {
-        let (sin_phi, cos_phi) = (2.0 * PI * uv.x as f64).sin_cos();
+        let (sin_phi, cos_phi) = crate::math::sin_cos(2.0 * PI * uv.x as f64);
         self.interaction_at(DVec3::new(cos_phi, sin_phi, uv.y as f64), 0.0, shape)
     }
 
@@ -295,7 +295,7 @@ impl Cylinder {
             t: n.cross(s).as_vec3(),
             n: n.as_vec3(),
         };
-        let mut phi = local.y.atan2(local.x);
+        let mut phi = crate::math::atan2(local.y, local.x);
         if phi < 0.0 {
             phi += 2.0 * PI;
         }
@@ -318,7 +318,7 @@ impl Cylinder {
     /// pdf 1 / area w.r.t. world area (uniform in world area unless the transform is warned
     /// about).
     pub fn sample_position(&self, u: Vec2) -> PositionSample {
-        let (sin, cos) = (2.0 * PI * u.y as f64).sin_cos();
+        let (sin, cos) = crate::math::sin_cos(2.0 * PI * u.y as f64);
         let local = DVec3::new(cos, sin, u.x as f64);
         let (p, p_error) = self.world_point(local);
         PositionSample {

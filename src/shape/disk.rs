@@ -90,7 +90,7 @@ impl Disk {
     /// The point with surface coordinates `uv` (Mitsuba's `eval_parameterization`: radius u,
     /// angle 2π v).
     pub fn at_uv(&self, uv: Vec2, shape: u32) -> SurfaceInteraction {
-        let (sin_phi, cos_phi) = (2.0 * PI * uv.y as f64).sin_cos();
+        let (sin_phi, cos_phi) = crate::math::sin_cos(2.0 * PI * uv.y as f64);
         let r = uv.x as f64;
         self.interaction_at(r * cos_phi, r * sin_phi, 0.0, shape)
     }
@@ -99,7 +99,7 @@ impl Disk {
     fn interaction_at(&self, x: f64, y: f64, t: f32, shape: u32) -> SurfaceInteraction {
         let (p, p_error) = self.world_point(x, y);
         let r = (x * x + y * y).sqrt();
-        let phi = y.atan2(x).rem_euclid(2.0 * PI);
+        let phi = crate::math::atan2(y, x).rem_euclid(2.0 * PI);
         // Mitsuba's parameterisation: u = r, v = φ/2π; at the centre dp/du is zero and the
         // shading frame falls back to an arbitrary tangent, as in Mitsuba.
         let (cos_phi, sin_phi) = if r > 0.0 { (x / r, y / r) } else { (0.0, 0.0) };

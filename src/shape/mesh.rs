@@ -2,9 +2,10 @@
 //! "Watertight Ray/Triangle Intersection" (JCGT 2(1)), with the conservative `t > 0` bound
 //! of pbrt-v4 §6.8.4 so that a ray leaving a triangle never re-hits it.
 
-use super::{PositionSample, SurfaceInteraction};
+use super::{PositionSample, PositionSamples, SurfaceInteraction};
 use crate::geometry::{gamma, Frame};
-use crate::sampling::{square_to_uniform_triangle, Distribution1D};
+use crate::sampling::{square_to_uniform_triangle_lanes, Distribution1D};
+use crate::simd::{for_each_lane, gather_u32x3, gather_vec3, LaneF32, LaneU32, Lanes, Scalar, V3};
 use glam::{DVec3, Vec2, Vec3, Vec4};
 
 /// A world-space triangle mesh.
@@ -124,23 +125,37 @@ impl Mesh {
         self.face_normals[tri]
     }
 
-    /// Shading normal at barycentrics (b0, b1, b2), or the face normal.
+    /// Shading normal at barycentrics (b0, b1, b2), or the face normal. The width-1 instance
+    /// of [`Mesh::shading_normal_lanes`].
     fn shading_normal(&self, tri: usize, b: [f32; 3], ng: Vec3) -> Vec3 {
+        if self.normals.is_none() {
+            return ng;
+        }
+        self.shading_normal_lanes(Scalar, true, self.triangles[tri], b, ng.into())
+            .into()
+    }
+
+    /// The shading normal lane by lane, at barycentrics `b` = (b0, b1, b2) of the triangles
+    /// with vertices `v`: Σ bᵢ nᵢ normalised (glam's `normalize_or_zero`), flipped with
+    /// `flip_normals`; the geometric normal `ng` where the mesh has no normals or the sum
+    /// is zero.
+    #[inline(always)]
+    pub fn shading_normal_lanes<L: Lanes>(
+        &self,
+        l: L,
+        m: L::M,
+        v: [L::U32; 3],
+        b: [L::F; 3],
+        ng: V3<L::F>,
+    ) -> V3<L::F> {
         let Some(normals) = &self.normals else {
             return ng;
         };
-        let [i0, i1, i2] = self.triangles[tri];
-        let n =
-            normals[i0 as usize] * b[0] + normals[i1 as usize] * b[1] + normals[i2 as usize] * b[2];
-        let n = n.normalize_or_zero();
-        if n == Vec3::ZERO {
-            return ng;
-        }
-        if self.flip_normals {
-            -n
-        } else {
-            n
-        }
+        let [n0, n1, n2] = v.map(|i| gather_vec3(l, normals, i, m));
+        let n = n0 * b[0] + n1 * b[1] + n2 * b[2];
+        let n = n.normalize_or_zero(l.splat(1.0), l.splat(0.0));
+        let n = if self.flip_normals { -n } else { n };
+        V3::select(n.cmp_eq(V3::splat(l.splat(0.0))), ng, n)
     }
 
     /// The surface interaction at barycentrics (b1, b2) of triangle `tri`.
@@ -197,20 +212,50 @@ impl Mesh {
         }
     }
 
-    /// Picks a triangle ∝ area, then a uniform point on it.
+    /// Picks a triangle ∝ area, then a uniform point on it. The width-1 instance of
+    /// [`Mesh::sample_position_lanes`].
     pub fn sample_position(&self, u: Vec2) -> Option<PositionSample> {
-        let dist = self.area_distribution.as_ref()?;
-        let (tri, ux) = dist.sample_reuse(u.x);
-        let b = square_to_uniform_triangle(Vec2::new(ux, u.y));
-        let bary = [1.0 - b.x - b.y, b.x, b.y];
-        let (p, p_error) = barycentric_point(self.vertices(tri), bary, 6);
-        let ng = self.face_normal(tri);
-        Some(PositionSample {
-            p,
-            p_error,
-            n: self.shading_normal(tri, bary, ng),
-            pdf: (1.0 / dist.total()) as f32,
-        })
+        let (ok, ps) = self.sample_position_lanes(Scalar, true, u.x, u.y);
+        ok.then(|| ps.into())
+    }
+
+    /// [`Mesh::sample_position`] lane by lane where `m` is set: the triangle picked ∝ area
+    /// by `ux` (a search of the f64 CDF, lane by lane), `ux` rescaled and `uy` mapped to
+    /// uniform barycentrics, the point and its error bound from the gathered vertices, the
+    /// shading normal there, and the density 1 / area. The mask of the lanes that got a
+    /// point (none when the mesh has no area).
+    #[inline(always)]
+    pub fn sample_position_lanes<L: Lanes>(
+        &self,
+        l: L,
+        m: L::M,
+        ux: L::F,
+        uy: L::F,
+    ) -> (L::M, PositionSamples<L>) {
+        let Some(dist) = self.area_distribution.as_ref() else {
+            return (l.mask(0), PositionSamples::zero(l));
+        };
+        let mut tri = l.splat_u32(0);
+        let mut ux2 = l.splat(0.0);
+        for_each_lane(
+            L::WIDTH,
+            m,
+            #[inline(always)]
+            |i| {
+                let (t, r) = dist.sample_reuse(ux.lane(i));
+                tri.set_lane(i, t as u32);
+                ux2.set_lane(i, r);
+            },
+        );
+        let (b1, b2) = square_to_uniform_triangle_lanes(l, ux2, uy);
+        let b = [l.splat(1.0) - b1 - b2, b1, b2];
+        let v = gather_u32x3(l, &self.triangles, tri, m);
+        let p = v.map(|i| gather_vec3(l, &self.positions, i, m));
+        let (p, p_error) = barycentric_point_lanes(l, p, b, 6);
+        let ng = gather_vec3(l, &self.face_normals, tri, m);
+        let n = self.shading_normal_lanes(l, m, v, b, ng);
+        let pdf = l.splat((1.0 / dist.total()) as f32);
+        (m, PositionSamples { p, p_error, n, pdf })
     }
 }
 
@@ -313,12 +358,25 @@ impl UvGrid {
     }
 }
 
-/// The point Σ bᵢ pᵢ and its conservative error bound γ(n) Σ |bᵢ pᵢ| (pbrt-v4 §6.8.2).
+/// The point Σ bᵢ pᵢ and its conservative error bound γ(n) Σ |bᵢ pᵢ| (pbrt-v4 §6.8.2). The
+/// width-1 instance of [`barycentric_point_lanes`].
 fn barycentric_point(p: [Vec3; 3], b: [f32; 3], n: i32) -> (Vec3, Vec3) {
+    let (point, err) = barycentric_point_lanes(Scalar, p.map(V3::from), b, n);
+    (point.into(), err.into())
+}
+
+/// [`barycentric_point`] lane by lane: ((b₀p₀ + b₁p₁) + b₂p₂, γ(n) ((|b₀p₀| + |b₁p₁|) + |b₂p₂|)).
+#[inline(always)]
+pub fn barycentric_point_lanes<L: Lanes>(
+    l: L,
+    p: [V3<L::F>; 3],
+    b: [L::F; 3],
+    n: i32,
+) -> (V3<L::F>, V3<L::F>) {
     let q = [p[0] * b[0], p[1] * b[1], p[2] * b[2]];
     let point = q[0] + q[1] + q[2];
     let abs_sum = q[0].abs() + q[1].abs() + q[2].abs();
-    (point, abs_sum * gamma(n))
+    (point, abs_sum * l.splat(gamma(n)))
 }
 
 /// Per-ray constants of the watertight test: the dominant axis `kz` of the direction, the
@@ -807,5 +865,181 @@ mod tests {
         let n = angle_weighted_normals(&p, &[[0, 2, 1], [0, 1, 3], [0, 3, 2]]);
         let expected = -Vec3::ONE.normalize();
         assert!((n[0] - expected).length() < 1e-6, "{}", n[0]);
+    }
+
+    /// `Mesh::sample_position` as it was before the lane kernel (issue 42, step 3a): the
+    /// oracle of [`Mesh::sample_position_lanes`].
+    fn sample_position_reference(m: &Mesh, u: Vec2) -> Option<PositionSample> {
+        let dist = m.area_distribution.as_ref()?;
+        let (tri, ux) = dist.sample_reuse(u.x);
+        let t = (1.0 - ux).sqrt();
+        let b = Vec2::new(1.0 - t, u.y * t);
+        let bary = [1.0 - b.x - b.y, b.x, b.y];
+        let p = m.vertices(tri);
+        let q = [p[0] * bary[0], p[1] * bary[1], p[2] * bary[2]];
+        let point = q[0] + q[1] + q[2];
+        let p_error = (q[0].abs() + q[1].abs() + q[2].abs()) * gamma(6);
+        let ng = m.face_normals[tri];
+        let n = match &m.normals {
+            None => ng,
+            Some(normals) => {
+                let [i0, i1, i2] = m.triangles[tri];
+                let n = normals[i0 as usize] * bary[0]
+                    + normals[i1 as usize] * bary[1]
+                    + normals[i2 as usize] * bary[2];
+                let n = n.normalize_or_zero();
+                if n == Vec3::ZERO {
+                    ng
+                } else if m.flip_normals {
+                    -n
+                } else {
+                    n
+                }
+            }
+        };
+        Some(PositionSample {
+            p: point,
+            p_error,
+            n,
+            pdf: (1.0 / dist.total()) as f32,
+        })
+    }
+
+    struct SamplePositions<'a> {
+        mesh: &'a Mesh,
+        u: &'a [Vec2],
+        active: &'a [bool],
+    }
+
+    impl crate::simd::LaneProgram for SamplePositions<'_> {
+        type Output = Vec<Option<PositionSample>>;
+        #[inline(always)]
+        fn run<L: Lanes>(self, l: L) -> Self::Output {
+            let mut out = Vec::with_capacity(self.u.len());
+            for (chunk, act) in self.u.chunks(L::WIDTH).zip(self.active.chunks(L::WIDTH)) {
+                let (mut ux, mut uy) = (l.splat(0.0), l.splat(0.0));
+                let mut bits = 0u32;
+                for (i, (u, &a)) in chunk.iter().zip(act).enumerate() {
+                    ux.set_lane(i, u.x);
+                    uy.set_lane(i, u.y);
+                    bits |= (a as u32) << i;
+                }
+                let (ok, ps) = self.mesh.sample_position_lanes(l, l.mask(bits), ux, uy);
+                let ok = crate::simd::LaneMask::bits(ok);
+                out.extend((0..chunk.len()).map(|i| {
+                    (ok >> i & 1 != 0).then(|| PositionSample {
+                        p: ps.p.lane(i),
+                        p_error: ps.p_error.lane(i),
+                        n: ps.n.lane(i),
+                        pdf: ps.pdf.lane(i),
+                    })
+                }));
+            }
+            out
+        }
+    }
+
+    /// Random meshes: uneven and zero-area triangles, with and without vertex normals (some
+    /// summing to zero), either orientation.
+    fn random_mesh(rng: &mut rand_pcg::Pcg32, normals: bool, flip: bool) -> Mesh {
+        use rand::RngExt;
+        let nv = 40;
+        let mut v3 = |s: f32| {
+            Vec3::new(
+                rng.random_range(-s..s),
+                rng.random_range(-s..s),
+                rng.random_range(-s..s),
+            )
+        };
+        let mut positions: Vec<Vec3> = (0..nv).map(|_| v3(3.0)).collect();
+        positions[7] = positions[3]; // a repeated vertex: zero-area triangles through it
+        positions[8] = positions[3] * 1e-30; // tiny coordinates
+        let normals = normals.then(|| {
+            let mut n: Vec<Vec3> = (0..nv).map(|_| v3(1.0).normalize_or_zero()).collect();
+            // zero normals: their triangle's normals sum to zero (the geometric normal then)
+            n[9] = Vec3::ZERO;
+            n[10] = Vec3::ZERO;
+            n[11] = Vec3::ZERO;
+            n
+        });
+        let tris: Vec<[u32; 3]> = (0..60u32)
+            .map(|k| match k % 10 {
+                0 => [3, 7, (k % nv as u32)],
+                1 => [9, 10, 11],
+                _ => [
+                    k % nv as u32,
+                    (k * 7 + 1) % nv as u32,
+                    (k * 13 + 2) % nv as u32,
+                ],
+            })
+            .collect();
+        Mesh::new(positions, normals, None, tris, flip)
+    }
+
+    /// The lane kernel against the scalar code of before, lane by lane, on every backend
+    /// this processor runs, with inactive lanes mixed in.
+    #[test]
+    fn sample_position_in_lanes_matches_the_scalar_code_bit_for_bit() {
+        use rand::{RngExt, SeedableRng};
+        let mut rng = rand_pcg::Pcg32::seed_from_u64(0x5a3b1e);
+        let edges = [0.0, 1.0 - f32::EPSILON / 2.0, 0.5, 1e-30, 0.1];
+        let u: Vec<Vec2> = (0..16 * 512)
+            .map(|k| match k % 5 {
+                0 => Vec2::new(edges[k / 5 % 5], edges[k / 25 % 5]),
+                _ => Vec2::new(rng.random::<f32>(), rng.random::<f32>()),
+            })
+            .collect();
+        let active: Vec<bool> = (0..u.len()).map(|_| rng.random_range(0..5) != 0).collect();
+        let mut checked = 0;
+        for (normals, flip) in [(false, false), (true, false), (true, true), (false, true)] {
+            let mesh = random_mesh(&mut rng, normals, flip);
+            let want: Vec<Option<PositionSample>> = u
+                .iter()
+                .map(|&u| sample_position_reference(&mesh, u))
+                .collect();
+            for b in crate::simd::Backend::ALL
+                .into_iter()
+                .filter(|b| b.supported())
+            {
+                let got = crate::simd::dispatch(
+                    b,
+                    SamplePositions {
+                        mesh: &mesh,
+                        u: &u,
+                        active: &active,
+                    },
+                )
+                .expect("supported");
+                for k in 0..u.len() {
+                    let want = want[k].filter(|_| active[k]);
+                    let bits = |p: &Option<PositionSample>| {
+                        p.map(|p| {
+                            [p.p, p.p_error, p.n]
+                                .map(|v| v.to_array().map(f32::to_bits))
+                                .concat()
+                                .into_iter()
+                                .chain([p.pdf.to_bits()])
+                                .collect::<Vec<u32>>()
+                        })
+                    };
+                    assert_eq!(
+                        bits(&got[k]),
+                        bits(&want),
+                        "{b}, normals {normals}, flip {flip}: u {:?}",
+                        u[k]
+                    );
+                    checked += want.is_some() as usize;
+                }
+            }
+            // the public scalar function is the width-1 instance
+            for (k, &uk) in u.iter().enumerate() {
+                let g = mesh
+                    .sample_position(uk)
+                    .map(|p| (p.p, p.p_error, p.n, p.pdf));
+                let w = want[k].map(|p| (p.p, p.p_error, p.n, p.pdf));
+                assert_eq!(format!("{g:?}"), format!("{w:?}"));
+            }
+        }
+        assert!(checked > 10000, "{checked}");
     }
 }

@@ -16,6 +16,7 @@ pub use sdfgrid::SdfGrid;
 pub use sphere::Sphere;
 
 use crate::geometry::{Frame, Ray};
+use crate::simd::{LaneF32, Lanes, Scalar, V3};
 use glam::{Vec2, Vec3};
 
 /// A local geometry record at a ray hit (pbrt's `SurfaceInteraction`, Mitsuba's
@@ -57,6 +58,87 @@ pub struct PositionSample {
     pub n: Vec3,
     /// Density w.r.t. surface area.
     pub pdf: f32,
+}
+
+/// Points sampled on a shape's surface, one per lane ([`PositionSample`] in lanes).
+#[derive(Clone, Copy, Debug)]
+pub struct PositionSamples<L: Lanes> {
+    pub p: V3<L::F>,
+    pub p_error: V3<L::F>,
+    pub n: V3<L::F>,
+    pub pdf: L::F,
+}
+
+impl<L: Lanes> PositionSamples<L> {
+    #[inline(always)]
+    pub fn zero(l: L) -> Self {
+        let v = V3::splat(l.splat(0.0));
+        PositionSamples {
+            p: v,
+            p_error: v,
+            n: v,
+            pdf: l.splat(0.0),
+        }
+    }
+
+    #[inline(always)]
+    pub fn set_lane(&mut self, i: usize, ps: &PositionSample) {
+        self.p.set_lane(i, ps.p);
+        self.p_error.set_lane(i, ps.p_error);
+        self.n.set_lane(i, ps.n);
+        self.pdf.set_lane(i, ps.pdf);
+    }
+}
+
+impl From<PositionSamples<Scalar>> for PositionSample {
+    #[inline(always)]
+    fn from(ps: PositionSamples<Scalar>) -> Self {
+        PositionSample {
+            p: ps.p.into(),
+            p_error: ps.p_error.into(),
+            n: ps.n.into(),
+            pdf: ps.pdf,
+        }
+    }
+}
+
+/// What the lane kernels read of the surface interactions of the lanes: the point, its
+/// error bound and the geometric normal (offsets, emitter sampling, shadow rays).
+#[derive(Clone, Copy, Debug)]
+pub struct SurfaceLanes<L: Lanes> {
+    pub p: V3<L::F>,
+    pub p_error: V3<L::F>,
+    pub ng: V3<L::F>,
+}
+
+impl<L: Lanes> SurfaceLanes<L> {
+    #[inline(always)]
+    pub fn zero(l: L) -> Self {
+        let v = V3::splat(l.splat(0.0));
+        SurfaceLanes {
+            p: v,
+            p_error: v,
+            ng: v,
+        }
+    }
+
+    #[inline(always)]
+    pub fn set_lane(&mut self, i: usize, si: &SurfaceInteraction) {
+        self.p.set_lane(i, si.p);
+        self.p_error.set_lane(i, si.p_error);
+        self.ng.set_lane(i, si.ng);
+    }
+}
+
+impl From<&SurfaceInteraction> for SurfaceLanes<Scalar> {
+    #[inline(always)]
+    fn from(si: &SurfaceInteraction) -> Self {
+        SurfaceLanes {
+            p: si.p.into(),
+            p_error: si.p_error.into(),
+            ng: si.ng.into(),
+        }
+    }
 }
 
 /// The geometry of one shape.

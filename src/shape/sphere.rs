@@ -90,8 +90,8 @@ impl Sphere {
     /// The point with surface coordinates `uv` (Mitsuba's `eval_parameterization`:
     /// φ = 2π u, θ = π v in the sphere's frame).
     pub fn at_uv(&self, uv: Vec2, shape: u32) -> SurfaceInteraction {
-        let (sin_phi, cos_phi) = (2.0 * PI * uv.x as f64).sin_cos();
-        let (sin_theta, cos_theta) = (PI * uv.y as f64).sin_cos();
+        let (sin_phi, cos_phi) = crate::math::sin_cos(2.0 * PI * uv.x as f64);
+        let (sin_theta, cos_theta) = crate::math::sin_cos(PI * uv.y as f64);
         let q = DVec3::new(sin_theta * cos_phi, sin_theta * sin_phi, cos_theta);
         self.interaction_at(self.rotation * q * self.radius, 0.0, shape)
     }
@@ -102,8 +102,8 @@ impl Sphere {
         let n = self.normal_at(self.center + local);
         // Mitsuba's parameterisation, in the sphere's own frame (unit radius).
         let q = self.rotation.transpose() * local / self.radius;
-        let phi = q.y.atan2(q.x).rem_euclid(2.0 * PI);
-        let theta = q.z.clamp(-1.0, 1.0).acos();
+        let phi = crate::math::atan2(q.y, q.x).rem_euclid(2.0 * PI);
+        let theta = crate::math::acos(q.z.clamp(-1.0, 1.0));
         let rd = (q.x * q.x + q.y * q.y).sqrt();
         let dp_du = DVec3::new(-q.y, q.x, 0.0) * (2.0 * PI);
         let dp_dv = if rd > 0.0 {

@@ -8,6 +8,7 @@
 //! and a plot ([`crate::study::plot::write_series_png`]).
 
 use crate::error::{Error, Result};
+use crate::film::Film;
 use crate::io::exr::RgbImage;
 use crate::render::Job;
 use crate::render::RenderStats;
@@ -326,6 +327,7 @@ pub fn efficiency(seconds: f64, mse: f64) -> f64 {
 
 /// Renders the ladder `steps` of `job` with `seed` against `reference` (same resolution).
 /// With `max_seconds`, the ladder stops after the first step whose time reaches it.
+/// `on_step` sees each step's record and its film (the image so far).
 pub fn run_one(
     job: &Job,
     steps: &[u32],
@@ -333,7 +335,7 @@ pub fn run_one(
     threads: Option<usize>,
     reference: &ReferenceImage,
     max_seconds: Option<f64>,
-    on_step: &mut dyn FnMut(&StepRecord),
+    on_step: &mut dyn FnMut(&StepRecord, &Film),
 ) -> Result<Run> {
     let scene = &job.scene;
     let r = &reference.image;
@@ -381,7 +383,7 @@ pub fn run_one(
                 metrics: step.metrics.clone(),
                 z_pass_rate,
             };
-            on_step(&record);
+            on_step(&record, film);
             records.push(record);
         },
     )?;

@@ -10,6 +10,8 @@ the estimator core, the score with its 95% Wilson interval (timeouts count as ca
 mutant hung the tests, the tests noticed), and every missed mutant, marked when
 tests/mutants/equivalent.txt lists it as equivalent.
 
+`--sample FILE` (the names tests/mutants/sample.py drew) scores only those mutants.
+
 `--listing LIST` (the output of `cargo mutants --list`) also checks that every entry of the
 equivalence list still names a mutant (entries go stale when code above them moves), and
 counts the listed mutants without an outcome; `--complete` makes those an error (a full run
@@ -150,8 +152,16 @@ def main(argv=None):
     ap.add_argument("--listing", help="output of `cargo mutants --list`, to find stale entries")
     ap.add_argument("--complete", action="store_true", help="every listed mutant must have an outcome")
     ap.add_argument("--strict", action="store_true", help="exit 1 on unlisted misses or stale entries")
+    ap.add_argument(
+        "--sample",
+        help="names drawn by tests/mutants/sample.py: score only these (cargo mutants runs its "
+        "'delete field' mutants whatever --re says)",
+    )
     args = ap.parse_args(argv)
     outcomes = read_outcomes(args.runs)
+    if args.sample:
+        drawn = set(read_list(args.sample))
+        outcomes = OrderedDict((n, v) for n, v in outcomes.items() if n in drawn)
     equivalent = read_list(args.equivalent)
     listing = read_list(args.listing) if args.listing else None
     if args.complete and listing is None:

@@ -102,3 +102,38 @@ def test_the_repository_list_names_only_mutants_of_the_estimator_core():
         assert file.startswith("src/") and file.endswith(".rs"), e
         assert (Path(__file__).resolve().parents[2] / file).exists(), e
         assert int(line) > 0 and int(column) > 0 and description.startswith(" "), e
+
+
+def test_sample_restricts_the_score_to_the_drawn_mutants(tmp_path, capsys):
+    run = run_dir(
+        tmp_path,
+        "s",
+        [mutant(A, "CaughtMutant"), mutant(B, "MissedMutant"), mutant(C, "CaughtMutant")],
+    )
+    drawn = tmp_path / "sample.txt"
+    drawn.write_text(f"{A}\n{C}\n")
+    assert summarize.main([str(run), "--sample", str(drawn), "--strict"]) == 0
+    out = capsys.readouterr().out
+    assert "Score 2/2" in out and B not in out
+    # without the sample, B's miss counts and --strict fails
+    assert summarize.main([str(run), "--strict"]) == 1
+
+
+import sample  # noqa: E402
+
+
+def test_sample_is_a_seeded_uniform_draw_in_listing_order():
+    names = [f"src/x.rs:{i}:1: replace a with b" for i in range(1000)]
+    a = sample.draw(names, 400, 44)
+    assert a == sample.draw(names, 400, 44)
+    assert len(a) == len(set(a)) == 400 and set(a) <= set(names)
+    assert a == sorted(a, key=names.index)
+    assert a != sample.draw(names, 400, 45)
+    # every mutant is equally likely: over 2000 draws of 1 in 10 names, each name's count is
+    # binomial(2000, 0.1); chi-square with 9 dof below its 0.999 quantile (27.88)
+    ten = names[:10]
+    counts = {n: 0 for n in ten}
+    for seed in range(2000):
+        counts[sample.draw(ten, 1, seed)[0]] += 1
+    chi2 = sum((c - 200) ** 2 / 200 for c in counts.values())
+    assert chi2 < 27.88, counts

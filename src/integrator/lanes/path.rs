@@ -1,0 +1,242 @@
+//! The lane engine of Mitsuba's `path` integrator ([`PathIntegrator`]): one tile's camera
+//! samples traced in the lanes of a backend, each iteration one bounce of every active lane:
+//!
+//! 1. refill: every free lane takes the next (pixel, sample) pair of the tile's queue, in
+//!    the scalar engine's order (pixel by pixel, samples ascending), and its camera ray;
+//! 2. intersect every active lane's ray;
+//! 3. at each hit, the emission and whether the path goes on ([`PathIntegrator::escape`],
+//!    [`PathIntegrator::at_surface`]);
+//! 4. at the lanes that go on, next-event estimation, BSDF sampling and Russian roulette
+//!    ([`PathIntegrator::scatter_lanes`], whose lane kernels run on all of them at once);
+//!
+//! and a lane whose path ended writes its result into the tile's slot for its sample.
+//! The path state lives in lanes ([`PathLanes`]); steps 2 and 3 are the scalar code called
+//! lane by lane on the state moved out of and back into the lanes.
+
+use super::LaneStats;
+use crate::geometry::Ray;
+use crate::integrator::path::{PathIntegrator, PathLanes, SurfaceStep};
+use crate::integrator::PathStats;
+use crate::material::ShadingBsdf;
+use crate::sampler::SampleStream;
+use crate::scene::Scene;
+use crate::shape::{SurfaceInteraction, SurfaceLanes};
+use crate::simd::MAX_WIDTH;
+use crate::simd::{dispatch, Backend, LaneF32, LaneMask, LaneProgram, LaneU32, Lanes, V3};
+use crate::spectrum::Spectrum;
+use glam::Vec2;
+
+/// One camera sample: its sample stream (past the camera's dimensions), its film position
+/// in pixels, and its ray.
+pub type CameraSample = (SampleStream, Vec2, Ray);
+
+/// What one tile asks of the lane engine: `total` camera samples, sample q made by
+/// `camera(q)` (q in the scalar engine's order), their values written to `out[q]`.
+pub struct TileQueue<'a> {
+    pub scene: &'a Scene,
+    pub path: &'a PathIntegrator,
+    pub total: usize,
+    pub camera: &'a (dyn Fn(usize) -> CameraSample + Sync),
+}
+
+/// Traces `queue` in lanes of `backend`, writing each sample's film position and value to
+/// `out` (at least `queue.total` long) and adding to the counters. False (and nothing
+/// traced) if this processor does not run the backend.
+pub fn trace_tile(
+    backend: Backend,
+    queue: &TileQueue,
+    out: &mut [(Vec2, Spectrum)],
+    stats: &mut PathStats,
+    lanes: &mut LaneStats,
+) -> bool {
+    assert!(out.len() >= queue.total, "one result slot per sample");
+    dispatch(
+        backend,
+        TileProgram {
+            queue,
+            out,
+            stats,
+            lanes,
+        },
+    )
+    .is_some()
+}
+
+struct TileProgram<'a, 'b> {
+    queue: &'a TileQueue<'b>,
+    out: &'a mut [(Vec2, Spectrum)],
+    stats: &'a mut PathStats,
+    lanes: &'a mut LaneStats,
+}
+
+impl LaneProgram for TileProgram<'_, '_> {
+    type Output = ();
+    #[inline(always)]
+    fn run<L: Lanes>(self, l: L) {
+        trace_queue(l, self.queue, self.out, self.stats, self.lanes)
+    }
+}
+
+/// The paths in the lanes ([`PathLanes`]), plus what the lane engine keeps per lane (its
+/// sample's slot and film position, its sample stream, the direction to the previous vertex
+/// between the emission and scatter steps).
+struct Paths<L: Lanes> {
+    l: L,
+    active: L::M,
+    st: PathLanes<L>,
+    wi_world: V3<L::F>,
+    /// The sample's index in the tile's queue.
+    slot: L::U32,
+    film_x: L::F,
+    film_y: L::F,
+    samplers: [SampleStream; MAX_WIDTH],
+}
+
+impl<L: Lanes> Paths<L> {
+    #[inline(always)]
+    fn new(l: L) -> Self {
+        let zero = l.splat(0.0);
+        Paths {
+            l,
+            active: l.mask(0),
+            st: PathLanes::zero(l),
+            wi_world: V3::splat(zero),
+            slot: l.splat_u32(0),
+            film_x: zero,
+            film_y: zero,
+            samplers: std::array::from_fn(|_| SampleStream::new(0, 0, 0)),
+        }
+    }
+
+    /// Lane `i`'s path has ended with `result`: its sample's slot gets it, the lane is free.
+    #[inline(always)]
+    fn finish(&mut self, i: usize, result: Spectrum, out: &mut [(Vec2, Spectrum)]) {
+        let pos = Vec2::new(self.film_x.lane(i), self.film_y.lane(i));
+        out[self.slot.lane(i) as usize] = (pos, result);
+        self.active = self.active.and_not(self.l.mask(1 << i));
+    }
+}
+
+/// The set lanes of `bits`, lowest first.
+#[inline(always)]
+fn lanes_of(mut bits: u32) -> impl Iterator<Item = usize> {
+    std::iter::from_fn(move || {
+        (bits != 0).then(|| {
+            let i = bits.trailing_zeros() as usize;
+            bits &= bits - 1;
+            i
+        })
+    })
+}
+
+#[inline(always)]
+fn trace_queue<L: Lanes>(
+    l: L,
+    queue: &TileQueue,
+    out: &mut [(Vec2, Spectrum)],
+    stats: &mut PathStats,
+    counters: &mut LaneStats,
+) {
+    let TileQueue {
+        scene,
+        path,
+        total,
+        camera,
+    } = *queue;
+    let width = L::WIDTH;
+    let all = l.mask(u32::MAX);
+    let mut p = Paths::new(l);
+    // What each lane's ray hit, between the intersection and the later steps.
+    let mut hits: [Option<SurfaceInteraction>; MAX_WIDTH] = [None; MAX_WIDTH];
+    // Where the lanes' materials vary, their BSDFs, filled in place (see `Scene::bsdf_at`).
+    let mut bsdf_bufs = vec![ShadingBsdf::new(); width];
+    // What the lane kernels read of the hits of the lanes that scatter.
+    let mut geo = SurfaceLanes::zero(l);
+    let mut next = 0usize;
+    counters.width = width as u64;
+    loop {
+        // 1. Refill the free lanes, lowest first, from the queue.
+        let mut free = (all.and_not(p.active)).bits();
+        while free != 0 && next < total {
+            let i = free.trailing_zeros() as usize;
+            let q = next;
+            next += 1;
+            let (sampler, pos, ray) = camera(q);
+            let Some(st) = path.start(ray) else {
+                // (max_depth 0: the path is black and takes no lane)
+                out[q] = (pos, Spectrum::ZERO);
+                continue;
+            };
+            p.st.put(l, i, &st);
+            p.samplers[i] = sampler;
+            p.slot.set_lane(i, q as u32);
+            p.film_x.set_lane(i, pos.x);
+            p.film_y.set_lane(i, pos.y);
+            p.active = p.active | l.mask(1 << i);
+            free &= free - 1;
+        }
+        if !p.active.any() {
+            break;
+        }
+        let active = p.active.bits();
+        let n = active.count_ones();
+        counters.iterations += 1;
+        counters.traced += n as u64;
+        counters.by_active[n as usize] += 1;
+        for i in lanes_of(active) {
+            let d = (p.st.depth.lane(i) as usize).min(LaneStats::DEPTHS - 1);
+            counters.by_depth[d] += 1;
+        }
+
+        // 2. Intersect.
+        for i in lanes_of(active) {
+            stats.rays += 1;
+            hits[i] = scene.intersect(&p.st.ray.lane(i));
+        }
+
+        // 3. Emission where the rays ended; which paths go on.
+        let mut scatter = 0u32;
+        for i in lanes_of(active) {
+            let mut st = p.st.get(i);
+            match &hits[i] {
+                None => {
+                    path.escape(scene, &mut st);
+                    p.finish(i, st.result.into(), out);
+                }
+                Some(si) => match path.at_surface(scene, &mut st, si) {
+                    SurfaceStep::End => p.finish(i, st.result.into(), out),
+                    SurfaceStep::Trace => p.st.put(l, i, &st),
+                    SurfaceStep::Scatter { wi_world } => {
+                        p.st.put(l, i, &st);
+                        p.wi_world.set_lane(i, wi_world);
+                        scatter |= 1 << i;
+                        geo.set_lane(i, si);
+                    }
+                },
+            }
+        }
+        counters.scattered += scatter.count_ones() as u64;
+        if scatter == 0 {
+            continue;
+        }
+
+        // 4. Next-event estimation, BSDF sampling, Russian roulette.
+        let scatter = l.mask(scatter);
+        let go = path.scatter_lanes(
+            l,
+            scene,
+            &mut p.st,
+            scatter,
+            #[inline(always)]
+            |i| hits[i].as_ref().expect("a scattering lane has a hit"),
+            &geo,
+            p.wi_world,
+            &mut p.samplers,
+            stats,
+            &mut bsdf_bufs,
+        );
+        for i in lanes_of(scatter.and_not(go).bits()) {
+            p.finish(i, p.st.result.lane(i), out);
+        }
+    }
+}
