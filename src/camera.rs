@@ -234,35 +234,99 @@ impl PerspectiveCamera {
         if self.lens.is_some() {
             return None;
         }
+        self.connect(p, Vec2::ZERO, DVec2::ZERO)
+    }
+
+    /// Connects the point `p` to a point of the lens drawn uniformly from `u` (the pinhole
+    /// itself without a lens), for film positions within the window enlarged by `margin`
+    /// (fractions of the window on each side: the pixels sampled beyond it with Mitsuba's
+    /// `sample_border`), whose area the importance is normalised over.
+    ///
+    /// A thin lens images the point through the lens point a where the ray from a through p
+    /// meets the plane of focus: the film position whose pinhole ray passes there. With the
+    /// lens point drawn uniformly (density 1/(π r²), as camera rays draw it), the film
+    /// position uniformly on the image rectangle at distance 1 (area A) and θ the angle of
+    /// the ray a → p to the axis, a camera ray from a has the solid-angle density
+    /// 1 / (A cos³θ) (the focus plane at distance f is the image rectangle scaled by f, seen
+    /// from a at distance f / cos θ), the same as the pinhole's: so the weight is the
+    /// pinhole's W_e / dist² with θ and dist measured from a.
+    pub fn connect(&self, p: Vec3, u: Vec2, margin: DVec2) -> Option<SensorSample> {
         let local = self.to_local.transform_point3(p.as_dvec3());
         if !(local.z >= self.near_clip as f64 && local.z <= self.far_clip as f64) {
             return None;
         }
-        let (x, y) = (local.x / local.z, local.y / local.z);
+        // The lens point (local) and where the ray from it through p meets the plane of
+        // focus, in units of the focus distance: the pinhole ray's (x, y, 1).
+        let (a, x, y) = match self.lens {
+            None => (DVec3::ZERO, local.x / local.z, local.y / local.z),
+            Some(lens) => {
+                let d = square_to_uniform_disk_concentric(u).as_dvec2() * lens.aperture_radius;
+                let a = DVec3::new(d.x, d.y, 0.0);
+                let t = lens.focus_distance / local.z;
+                let q = a + (local - a) * t;
+                (a, q.x / lens.focus_distance, q.y / lens.focus_distance)
+            }
+        };
         let film = self.window.from_film(DVec2::new(
             0.5 * (1.0 - x / self.tan_half_x),
             0.5 * (1.0 - y * self.aspect / self.tan_half_x),
         ));
-        if !(film.cmpge(DVec2::ZERO).all() && film.cmple(DVec2::ONE).all()) {
+        if !(film.cmpge(-margin).all() && film.cmple(DVec2::ONE + margin).all()) {
             return None;
         }
-        let v = self.origin.as_dvec3() - p.as_dvec3();
+        let v = local - a;
         let dist = v.length();
         if !(dist > 0.0 && dist.is_finite()) {
             return None;
         }
-        let cos = local.z / local.length();
-        // The window's part of the image plane (Mitsuba's `m_image_rect` is the crop's).
-        let area =
-            4.0 * self.tan_half_x * self.tan_half_x / self.aspect * self.window.area_fraction();
-        let we = 1.0 / (area * cos * cos * cos);
+        let cos = v.z / dist;
+        let we = 1.0 / (self.importance_area(margin) * cos * cos * cos);
+        let (xa, ya) = (self.x.as_dvec3(), self.y.as_dvec3());
+        let lens_point = self.origin.as_dvec3() + xa * a.x + ya * a.y;
+        let d = lens_point - p.as_dvec3();
+        let world_dist = d.length();
+        if !(world_dist > 0.0 && world_dist.is_finite()) {
+            return None;
+        }
         Some(SensorSample {
             film: film.as_vec2(),
-            p: self.origin,
-            d: (v / dist).as_vec3(),
-            dist: dist as f32,
-            weight: (we / (dist * dist)) as f32,
+            p: lens_point.as_vec3(),
+            d: (d / world_dist).as_vec3(),
+            dist: world_dist as f32,
+            weight: (we / (world_dist * world_dist)) as f32,
         })
+    }
+
+    /// The area A at distance 1 of the part of the image plane that camera rays sample:
+    /// the window (Mitsuba's `m_image_rect` is the crop's) enlarged by `margin` on each side.
+    fn importance_area(&self, margin: DVec2) -> f64 {
+        let grow = (1.0 + 2.0 * margin.x) * (1.0 + 2.0 * margin.y);
+        4.0 * self.tan_half_x * self.tan_half_x / self.aspect * self.window.area_fraction() * grow
+    }
+
+    /// The solid-angle density with which camera rays (from the lens point they start at)
+    /// take the world direction `d`: 1 / (A cos³θ) over the sampled image plane (see
+    /// [`PerspectiveCamera::connect`]; 0 behind the camera). Rays through the window only,
+    /// so the caller knows that `d` lies in it.
+    pub fn pdf_direction(&self, d: Vec3, margin: DVec2) -> f32 {
+        let l = self.to_local.transform_vector3(d.as_dvec3());
+        let len = l.length();
+        if !(l.z > 0.0 && len > 0.0) {
+            return 0.0;
+        }
+        let cos = l.z / len;
+        (1.0 / (self.importance_area(margin) * cos * cos * cos)) as f32
+    }
+
+    /// Where a camera ray starts on the lens (the pinhole, or the aperture point), before
+    /// its move to the near clipping plane: `ray` as [`PerspectiveCamera::generate_ray_lens`]
+    /// made it.
+    pub fn lens_point(&self, ray: &Ray) -> Vec3 {
+        let dz = self.to_local.transform_vector3(ray.d.as_dvec3()).z;
+        if self.lens.is_none() || dz <= 0.0 {
+            return self.origin;
+        }
+        (ray.o.as_dvec3() - ray.d.as_dvec3() * (self.near_clip as f64 / dz)).as_vec3()
     }
 
     /// The local (camera-space) unit direction through film position `s` ∈ [0,1]².
@@ -405,6 +469,42 @@ impl Camera {
         match self {
             Camera::Perspective(c) => c.sample_direction(p),
             Camera::Orthographic(_) => None,
+        }
+    }
+
+    /// Connects the point `p` to the camera through the lens point drawn from `u`, for
+    /// film positions within the window enlarged by `margin` on each side
+    /// ([`PerspectiveCamera::connect`]): a pinhole or thin-lens `perspective` camera; `None`
+    /// for an orthographic one (its rays are parallel: no point connects to it).
+    pub fn connect(&self, p: Vec3, u: Vec2, margin: DVec2) -> Option<SensorSample> {
+        match self {
+            Camera::Perspective(c) => c.connect(p, u, margin),
+            Camera::Orthographic(_) => None,
+        }
+    }
+
+    /// Whether [`Camera::connect`] can reach this camera (perspective, with or without a
+    /// lens).
+    pub fn connects(&self) -> bool {
+        matches!(self, Camera::Perspective(_))
+    }
+
+    /// The solid-angle density with which camera rays take direction `d`
+    /// ([`PerspectiveCamera::pdf_direction`]; 0 for an orthographic camera, whose direction
+    /// is fixed).
+    pub fn pdf_direction(&self, d: Vec3, margin: DVec2) -> f32 {
+        match self {
+            Camera::Perspective(c) => c.pdf_direction(d, margin),
+            Camera::Orthographic(_) => 0.0,
+        }
+    }
+
+    /// Where camera ray `ray` starts on the lens (the pinhole, or the aperture point; for an
+    /// orthographic camera the ray's origin on the film rectangle).
+    pub fn lens_point(&self, ray: &Ray) -> Vec3 {
+        match self {
+            Camera::Perspective(c) => c.lens_point(ray),
+            Camera::Orthographic(_) => ray.o,
         }
     }
 

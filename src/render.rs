@@ -335,6 +335,11 @@ pub fn render_with(
             out.stats.engine = engine;
             return Ok(out);
         }
+        Integrator::Bdpt(b) => {
+            let mut out = render_bdpt(scene, b, settings, &pool, progress);
+            out.stats.engine = engine;
+            return Ok(out);
+        }
         _ => {}
     }
     // Tiles of the image, or of the image and the border Mitsuba's `sample_border` samples.
@@ -468,6 +473,116 @@ fn render_particles(
     }
     if spp > 0 {
         film.add_light_pass(&pass);
+    }
+    stats.seconds = start.elapsed().as_secs_f64();
+    RenderOutput { film, stats }
+}
+
+/// Bidirectional path tracing's work item: the pixel samples of sample index `s` of one row
+/// of the sampled pixels (the image and Mitsuba's `sample_border` beyond it).
+#[derive(Default)]
+struct BdptRow {
+    /// Each pixel sample's film position (pixels) and camera-side radiance.
+    samples: Vec<(Vec2, crate::spectrum::Spectrum)>,
+    splats: Vec<Splat>,
+    stats: PathStats,
+}
+
+/// Renders a bidirectional path tracer. Each sample index is one pass over all the sampled
+/// pixels: their camera samples and light-tracing splats are added to a
+/// [`crate::film::MixedPass`] in a fixed order (row, pixel), and the pass to the film as one
+/// sample per pixel ([`Film::add_mixed_pass`]); rows are traced in parallel, so the image is
+/// bit-identical at any thread count, and a render of samples [a, b) is the same sums as its
+/// parts rendered separately.
+fn render_bdpt(
+    scene: &Scene,
+    bdpt: &crate::integrator::Bdpt,
+    settings: &RenderSettings,
+    pool: &rayon::ThreadPool,
+    progress: &(dyn Fn(u64, u64) + Sync),
+) -> RenderOutput {
+    let b = scene.sample_border as i64;
+    let (w, h) = (scene.width as i64, scene.height as i64);
+    let (cols, rows) = ((w + 2 * b) as usize, (h + 2 * b) as usize);
+    let spp = settings.spp as usize;
+    let sampler = settings.sampler.unwrap_or(scene.sampler);
+    let inv_res = Vec2::new(1.0 / w as f32, 1.0 / h as f32);
+    let res = Vec2::new(w as f32, h as f32);
+    let total = (cols * rows) as u64 * settings.spp as u64;
+    let start = Instant::now();
+    let mut film = Film::new(scene.width, scene.height, scene.filter);
+    let mut pass =
+        crate::film::MixedPass::new(scene.width, scene.height, scene.filter, scene.sample_border);
+    let mut stats = RenderStats {
+        paths: total,
+        ..Default::default()
+    };
+    let items = spp * rows;
+    let mut done = 0u64;
+    for batch in (0..items).step_by(PARTICLE_BATCH) {
+        let end = (batch + PARTICLE_BATCH).min(items);
+        let results: Vec<BdptRow> = pool.install(|| {
+            (batch..end)
+                .into_par_iter()
+                .map_init(crate::integrator::bdpt::Scratch::default, |scratch, k| {
+                    let (s, y) = (k / rows, (k % rows) as i64 - b);
+                    let mut row = BdptRow::default();
+                    for x in -b..w + b {
+                        let (pixel, size) = scene.sample_key(x, y);
+                        let mut stream = sampler.stream(
+                            settings.seed,
+                            pixel,
+                            size,
+                            settings.first_sample + s as u64,
+                        );
+                        // The camera ray as the path tracer draws it.
+                        let pos = Vec2::new(x as f32, y as f32) + stream.next_2d();
+                        let ray = if scene.camera.needs_aperture_sample() {
+                            let u_lens = stream.next_2d();
+                            scene.camera.generate_ray_lens(pos * inv_res, u_lens)
+                        } else {
+                            scene.camera.generate_ray(pos * inv_res)
+                        };
+                        let l = bdpt.sample(
+                            scene,
+                            ray,
+                            &mut stream,
+                            scratch,
+                            &mut row.stats,
+                            &mut row.splats,
+                        );
+                        row.samples.push((pos, l));
+                    }
+                    row
+                })
+                .collect()
+        });
+        for (k, row) in (batch..end).zip(results) {
+            if k > 0 && k % rows == 0 {
+                film.add_mixed_pass(&pass);
+                pass.clear();
+            }
+            stats.path += row.stats;
+            for (pos, l) in row.samples {
+                if l.is_finite() {
+                    pass.add_sample(pos, l);
+                } else {
+                    stats.nonfinite += 1;
+                }
+            }
+            for sp in &row.splats {
+                if sp.value.is_finite() {
+                    pass.add_splat(sp.film * res, sp.value);
+                } else {
+                    stats.nonfinite += 1;
+                }
+            }
+        }
+        done += ((end - batch) * cols) as u64;
+        progress(done, total);
+    }
+    if spp > 0 {
+        film.add_mixed_pass(&pass);
     }
     stats.seconds = start.elapsed().as_secs_f64();
     RenderOutput { film, stats }

@@ -64,6 +64,7 @@ fn one_bounce_short(job: &mut penumbra::render::Job) -> bool {
         Integrator::VolPath(p) => &mut p.max_depth,
         Integrator::VolPathMis(p) => &mut p.max_depth,
         Integrator::ParticleTracer(p) => &mut p.max_depth,
+        Integrator::Bdpt(p) => &mut p.max_depth,
         Integrator::Sppm(p) => &mut p.max_depth,
         Integrator::Whitted(p) => &mut p.max_depth,
         Integrator::Direct(_) | Integrator::Aov(_) | Integrator::Radiosity(_) => return false,

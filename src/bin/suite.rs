@@ -20,6 +20,11 @@ struct Args {
     /// Worker threads (default: one per core).
     #[arg(long)]
     threads: Option<usize>,
+    /// Render every scene with this integrator instead of its own (as `render --integrator`
+    /// switches it: max_depth, rr_depth and hide_emitters kept), against the same reference;
+    /// a scene it cannot render (media for `bdpt`) is reported unsupported.
+    #[arg(long)]
+    integrator: Option<String>,
 }
 
 fn main() -> anyhow::Result<()> {
@@ -33,7 +38,29 @@ fn main() -> anyhow::Result<()> {
             .as_ref()
             .is_none_or(|f| s.name.contains(f.as_str()))
     }) {
-        match suite::run(s, args.threads) {
+        let outcome = match &args.integrator {
+            None => suite::run(s, args.threads),
+            Some(kind) => {
+                let mut why = String::new();
+                suite::run_with(s, args.threads, &mut |job| match switch(
+                    &s.path,
+                    &s.integrator,
+                    kind,
+                    &job.scene,
+                ) {
+                    Ok(i) => {
+                        job.integrator = i;
+                        true
+                    }
+                    Err(e) => {
+                        why = e.to_string();
+                        false
+                    }
+                })
+                .unwrap_or_else(|| Outcome::Unsupported(why.clone()))
+            }
+        };
+        match outcome {
             Outcome::Judged(j) => {
                 if j.passed {
                     passed += 1;
@@ -65,4 +92,17 @@ fn main() -> anyhow::Result<()> {
     }
     println!("\n{passed} passed, {failed} failed, {unsupported} not loadable");
     Ok(())
+}
+
+/// The integrator of the scene at `path` (its `$integrator` set to `own`) switched to `kind`.
+fn switch(
+    path: &std::path::Path,
+    own: &str,
+    kind: &str,
+    scene: &penumbra::scene::Scene,
+) -> penumbra::error::Result<penumbra::integrator::Integrator> {
+    let defines = [("integrator".to_string(), own.to_string())];
+    let desc = penumbra::scene::Scene::load_description(path, &defines)?;
+    let switched = desc.integrator.switched_to(kind)?;
+    penumbra::integrator::Integrator::build(&switched, scene)
 }

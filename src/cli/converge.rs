@@ -32,7 +32,8 @@ pub(crate) struct ConvergeArgs {
     #[arg(long)]
     seed: Option<u64>,
     /// Sweep one scene parameter: NAME=v1,v2,... (a <default> of the scene, as -D sets it;
-    /// the path integrator's max_depth / rr_depth; or `sampler=independent,stratified,...`).
+    /// the path integrator's max_depth / rr_depth; `sampler=independent,stratified,...`; or
+    /// `integrator=path,bdpt,...`, switched as `render --integrator` does).
     #[arg(long, value_name = "NAME=V1,V2,...")]
     sweep: Option<String>,
     /// Set a scene parameter declared with <default name=...>, like Mitsuba's -D.
@@ -250,6 +251,7 @@ pub(crate) fn run_converge(args: ConvergeArgs) -> Result<()> {
             mode: match mode {
                 Some(SweepMode::Integrator) => "integrator".into(),
                 Some(SweepMode::Sampler) => "sampler".into(),
+                Some(SweepMode::SwitchIntegrator) => "switch".into(),
                 _ => "define".into(),
             },
         }),

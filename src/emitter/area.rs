@@ -336,6 +336,37 @@ impl AreaEmitter {
         (pos.pdf.is_finite() && pos.pdf > 0.0).then_some(pos)
     }
 
+    /// The area density with which [`AreaEmitter::sample_position`] draws the point `si`
+    /// of the emitter's shape: uniform by area for a constant radiance, p_uv / |∂p/∂u ×
+    /// ∂p/∂v| for a textured one.
+    pub fn pdf_position(&self, si: &SurfaceInteraction, shapes: &[Shape]) -> f32 {
+        let pdf = if self.radiance.is_constant() {
+            (1.0 / shapes[self.shape as usize].geometry.area()) as f32
+        } else {
+            let jacobian = si.dp_du.cross(si.dp_dv).length();
+            self.radiance.pdf_position(si.uv) / jacobian
+        };
+        if pdf.is_finite() {
+            pdf
+        } else {
+            0.0
+        }
+    }
+
+    /// The solid-angle density of [`AreaEmitter::sample_direction`] from `p_ref` where it
+    /// samples the cone a sphere subtends (a constant radiance on a sphere seen from
+    /// outside); `None` where it samples by area ([`AreaEmitter::pdf_position`]).
+    pub fn cone_pdf(&self, p_ref: Vec3, shapes: &[Shape]) -> Option<f32> {
+        if !self.radiance.is_constant() {
+            return None;
+        }
+        let ShapeGeometry::Sphere(s) = &shapes[self.shape as usize].geometry else {
+            return None;
+        };
+        let (_, _, _, one_minus) = sphere_cone(s, p_ref)?;
+        Some((1.0 / (2.0 * std::f64::consts::PI * one_minus)) as f32)
+    }
+
     /// A ray leaving the emitter: a point by [`AreaEmitter::sample_position`] and a
     /// cosine-weighted direction on its emitting side, weight L π / p_A.
     pub fn sample_ray(&self, u_pos: Vec2, u_dir: Vec2, shapes: &[Shape]) -> Option<EmitterRay> {
@@ -350,6 +381,10 @@ impl AreaEmitter {
                 f32::INFINITY,
             ),
             weight: pos.radiance * (std::f32::consts::PI / pos.pdf),
+            origin: pos.p,
+            n: pos.n,
+            ng: pos.ng,
+            pdf_pos: pos.pdf,
         })
     }
 

@@ -34,6 +34,43 @@ use glam::{Vec2, Vec3};
 pub struct EmitterRay {
     pub ray: Ray,
     pub weight: Spectrum,
+    /// Where the ray leaves the emitter, before any offset off its surface (on the disk
+    /// of [`ray_from_infinity`] for emitters at infinity).
+    pub origin: Vec3,
+    /// The emitting side's unit normal at `origin` (the shading normal) and the geometric
+    /// one; zero off surfaces (point sources, emitters at infinity).
+    pub n: Vec3,
+    pub ng: Vec3,
+    /// The area density of `origin` on the emitter's surface (1 for point sources; for
+    /// emitters at infinity the density 1/(π r²) of the disk).
+    pub pdf_pos: f32,
+}
+
+impl EmitterRay {
+    /// A ray leaving a point source (point, spot, projector).
+    fn from_point(ray: Ray, weight: Spectrum) -> Self {
+        EmitterRay {
+            ray,
+            weight,
+            origin: ray.o,
+            n: Vec3::ZERO,
+            ng: Vec3::ZERO,
+            pdf_pos: 1.0,
+        }
+    }
+
+    /// A ray entering from infinity (directional, constant, envmap), its origin on a disk
+    /// of area `disk`.
+    fn from_infinity(ray: Ray, weight: Spectrum, disk: f32) -> Self {
+        EmitterRay {
+            ray,
+            weight,
+            origin: ray.o,
+            n: Vec3::ZERO,
+            ng: Vec3::ZERO,
+            pdf_pos: 1.0 / disk,
+        }
+    }
 }
 
 /// A point drawn on an area emitter, for connecting the emitter itself to the camera.
@@ -298,26 +335,51 @@ impl Emitter {
             Emitter::Point(e) => e.sample_ray(u_dir),
             Emitter::Spot(e) => e.sample_ray(u_dir)?,
             Emitter::Projector(e) => e.sample_ray(u_dir)?,
-            Emitter::Directional(e) => EmitterRay {
-                ray: ray_from_infinity(e.direction, u_pos, bounds),
-                weight: e.irradiance * disk,
-            },
+            Emitter::Directional(e) => EmitterRay::from_infinity(
+                ray_from_infinity(e.direction, u_pos, bounds),
+                e.irradiance * disk,
+                disk,
+            ),
             Emitter::Constant(e) => {
                 let d = crate::sampling::square_to_uniform_sphere(u_dir);
-                EmitterRay {
-                    ray: ray_from_infinity(-d, u_pos, bounds),
-                    weight: e.radiance * (disk / constant::UNIFORM_SPHERE_PDF),
-                }
+                EmitterRay::from_infinity(
+                    ray_from_infinity(-d, u_pos, bounds),
+                    e.radiance * (disk / constant::UNIFORM_SPHERE_PDF),
+                    disk,
+                )
             }
             Emitter::EnvMap(e) => {
                 let ds = e.sample_direction(u_dir)?;
-                EmitterRay {
-                    ray: ray_from_infinity(-ds.d, u_pos, bounds),
-                    weight: ds.radiance * (disk / ds.pdf),
-                }
+                EmitterRay::from_infinity(
+                    ray_from_infinity(-ds.d, u_pos, bounds),
+                    ds.radiance * (disk / ds.pdf),
+                    disk,
+                )
             }
         };
         (r.weight.is_finite() && r.weight.max_element() > 0.0).then_some(r)
+    }
+
+    /// The solid-angle density with which [`Emitter::sample_ray`] takes direction `d` from
+    /// its origin, whose emitting normal is `n` (area emitters: cosine-weighted about it);
+    /// 0 for emitters at infinity, whose rays' origins are drawn instead (see
+    /// [`EmitterRay::pdf_pos`]).
+    pub fn pdf_ray_direction(&self, n: Vec3, d: Vec3) -> f32 {
+        match self {
+            Emitter::Area(_) => n.dot(d).max(0.0) * std::f32::consts::FRAC_1_PI,
+            Emitter::Point(_) => constant::UNIFORM_SPHERE_PDF,
+            Emitter::Spot(e) => e.pdf_ray_direction(d),
+            Emitter::Projector(e) => e.pdf_ray_direction(d),
+            Emitter::Directional(_) | Emitter::Constant(_) | Emitter::EnvMap(_) => 0.0,
+        }
+    }
+
+    /// Whether the emitter lies at infinity (directional, constant, envmap).
+    pub fn is_infinite(&self) -> bool {
+        matches!(
+            self,
+            Emitter::Directional(_) | Emitter::Constant(_) | Emitter::EnvMap(_)
+        )
     }
 
     /// A point on an area emitter (`None` for every other kind), for connecting the

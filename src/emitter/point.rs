@@ -31,9 +31,9 @@ impl PointEmitter {
 
     /// A ray in a uniformly drawn direction, weight 4π I.
     pub fn sample_ray(&self, u: Vec2) -> EmitterRay {
-        EmitterRay {
-            ray: Ray::new(self.position, square_to_uniform_sphere(u), f32::INFINITY),
-            weight: self.intensity * (4.0 * std::f32::consts::PI),
-        }
+        EmitterRay::from_point(
+            Ray::new(self.position, square_to_uniform_sphere(u), f32::INFINITY),
+            self.intensity * (4.0 * std::f32::consts::PI),
+        )
     }
 }

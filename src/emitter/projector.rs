@@ -95,10 +95,34 @@ impl ProjectorEmitter {
         let d = self.to_world.transform_vector3(local).normalize();
         let e = self.irradiance.eval(&TextureContext::at_uv(uv));
         let area = self.image_area() as f32;
-        Some(EmitterRay {
-            ray: Ray::new(self.position, d, f32::INFINITY),
-            weight: e * (std::f32::consts::PI * self.scale * area / pdf),
-        })
+        Some(EmitterRay::from_point(
+            Ray::new(self.position, d, f32::INFINITY),
+            e * (std::f32::consts::PI * self.scale * area / pdf),
+        ))
+    }
+
+    /// The solid-angle density with which [`ProjectorEmitter::sample_ray`] takes the world
+    /// direction `d`: p_uv / (A cos³θ) (see there), 0 outside the image.
+    pub fn pdf_ray_direction(&self, d: Vec3) -> f32 {
+        let local = self.to_local.transform_vector3(d);
+        if local.z <= 0.0 {
+            return 0.0;
+        }
+        let t = self.cot_half_fov / local.z;
+        let uv = Vec2::new(
+            0.5 - 0.5 * local.x * t,
+            0.5 - 0.5 * self.aspect * local.y * t,
+        );
+        if !(uv.cmpge(Vec2::ZERO).all() && uv.cmple(Vec2::ONE).all()) {
+            return 0.0;
+        }
+        let cos = local.z / local.length();
+        let pdf = self.irradiance.pdf_position(uv) / (self.image_area() as f32 * cos * cos * cos);
+        if pdf.is_finite() {
+            pdf
+        } else {
+            0.0
+        }
     }
 
     pub fn sample_direction(&self, p_ref: Vec3) -> Option<DirectionSample> {

@@ -112,10 +112,21 @@ impl SpotEmitter {
             weight *= t.eval(&TextureContext::at_uv(self.direction_to_uv(local)));
         }
         let d = (self.to_world * local).normalize();
-        Some(EmitterRay {
-            ray: Ray::new(self.position, d, f32::INFINITY),
+        Some(EmitterRay::from_point(
+            Ray::new(self.position, d, f32::INFINITY),
             weight,
-        })
+        ))
+    }
+
+    /// The solid-angle density with which [`SpotEmitter::sample_ray`] takes the world
+    /// direction `d`: uniform within the cutoff cone.
+    pub fn pdf_ray_direction(&self, d: Vec3) -> f32 {
+        let local = (self.to_local * d).normalize_or_zero();
+        if local.z >= self.cos_cutoff {
+            1.0 / (2.0 * std::f32::consts::PI * (1.0 - self.cos_cutoff))
+        } else {
+            0.0
+        }
     }
 
     pub fn sample_direction(&self, p_ref: Vec3) -> Option<DirectionSample> {

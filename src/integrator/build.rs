@@ -2,8 +2,8 @@
 //! (without knowing which integrator walks it), then the integrator is made for it.
 
 use super::{
-    aov::AovIntegrator, ptracer, radiosity::RadiosityIntegrator, DirectIntegrator, Integrator,
-    ParticleTracer, PathIntegrator, Sppm, VolPathIntegrator, VolPathMisIntegrator,
+    aov::AovIntegrator, ptracer, radiosity::RadiosityIntegrator, Bdpt, DirectIntegrator,
+    Integrator, ParticleTracer, PathIntegrator, Sppm, VolPathIntegrator, VolPathMisIntegrator,
     WhittedIntegrator,
 };
 use crate::error::{Error, Result};
@@ -123,6 +123,22 @@ impl Integrator {
                     },
                     initial_radius: initial_radius as f32,
                     alpha: alpha as f32,
+                })
+            }
+            IntegratorDesc::Bdpt {
+                max_depth,
+                rr_depth,
+                hide_emitters,
+                strategy,
+                strategy_mis,
+            } => {
+                ptracer::check_scene("bdpt", false, &scene.camera, has_media)?;
+                Integrator::Bdpt(Bdpt {
+                    max_depth: depth(max_depth),
+                    rr_depth: rr(rr_depth),
+                    hide_emitters,
+                    strategy,
+                    strategy_mis,
                 })
             }
             IntegratorDesc::ParticleTracer {

@@ -2,6 +2,7 @@
 //! share (emission where a ray ends, and one next-event estimation sample).
 
 pub mod aov;
+pub mod bdpt;
 pub mod build;
 pub mod direct;
 pub mod lanes;
@@ -13,6 +14,7 @@ pub mod volpath;
 pub mod volpathmis;
 pub mod whitted;
 
+pub use bdpt::Bdpt;
 pub use direct::DirectIntegrator;
 pub use path::PathIntegrator;
 pub use ptracer::ParticleTracer;
@@ -68,6 +70,9 @@ pub enum Integrator {
     /// Stochastic progressive photon mapping: like the particle tracer, rendered by the
     /// driver as a whole ([`Sppm::render`]).
     Sppm(Sppm),
+    /// Bidirectional path tracing: its light-tracing strategy splats anywhere on the film,
+    /// so the driver renders it pass by pass (`render::render`).
+    Bdpt(Bdpt),
 }
 
 impl Integrator {
@@ -83,6 +88,7 @@ impl Integrator {
             Integrator::VolPathMis(_) => "volpathmis",
             Integrator::ParticleTracer(_) => "ptracer",
             Integrator::Sppm(_) => "sppm",
+            Integrator::Bdpt(_) => "bdpt",
         }
     }
 
@@ -103,7 +109,9 @@ impl Integrator {
             Integrator::VolPath(v) => v.li(scene, ray, sampler, stats),
             Integrator::VolPathMis(v) => v.li(scene, ray, sampler, stats),
             // The render driver never asks a light tracer for camera-ray radiance.
-            Integrator::ParticleTracer(_) | Integrator::Sppm(_) => Spectrum::ZERO,
+            Integrator::ParticleTracer(_) | Integrator::Sppm(_) | Integrator::Bdpt(_) => {
+                Spectrum::ZERO
+            }
         }
     }
 }
@@ -142,7 +150,7 @@ pub(crate) fn emitter_pdf_at(
 /// Area emitters a hidden camera ray passes through before giving up (a ray crossing more
 /// stacked lights renders black). One rule for every integrator with `hide_emitters` that
 /// passes through emitters in a separate step (direct, whitted, volpath, volpathmis).
-const MAX_SKIPPED_EMITTERS: u32 = 256;
+pub(crate) const MAX_SKIPPED_EMITTERS: u32 = 256;
 
 /// Where a camera ray of direction `d` ends when it passes through area emitters
 /// (`hide_emitters`, Mitsuba's `skip_area_emitters`): `hit`

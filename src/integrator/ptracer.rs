@@ -52,7 +52,7 @@ pub struct Splat {
 
 /// The shadow ray from `p` (error `p_error`, geometric normal `ng`, zero off surfaces) to the
 /// pinhole at `target`, stopping a relative [`SHADOW_EPSILON`] short of it.
-fn ray_to_camera(p: Vec3, p_error: Vec3, ng: Vec3, target: Vec3) -> Ray {
+pub(crate) fn ray_to_camera(p: Vec3, p_error: Vec3, ng: Vec3, target: Vec3) -> Ray {
     let d0 = target - p;
     let from = offset_ray_origin(p, p_error, ng, d0);
     let v = target - from;
@@ -98,6 +98,34 @@ pub(crate) fn adjoint_correction(
 ) -> Option<f32> {
     let (wi_ng, wo_ng) = (wi_world.dot(ng), wo_world.dot(ng));
     (wi_ng * wi.z > 0.0 && wo_ng * wo.z > 0.0).then(|| (wi.z * wo_ng / (wo.z * wi_ng)).abs())
+}
+
+/// What a light-path vertex at `si` sends to the camera point of `c` (light arriving with
+/// throughput `throughput` from `wi_world`, `wi` in the shading frame; `bsdf` in importance
+/// mode): throughput · f · (adjoint correction · W_e / dist²), the splat's value before the
+/// visibility test ([`sees_camera`]); `None` where the directions lie on different sides of
+/// the geometric and the shading normal.
+pub(crate) fn camera_splat(
+    si: &crate::shape::SurfaceInteraction,
+    bsdf: &crate::material::ShadingBsdf,
+    throughput: Spectrum,
+    wi_world: Vec3,
+    wi: Vec3,
+    c: &crate::camera::SensorSample,
+) -> Option<Spectrum> {
+    let wo = si.frame.to_local(c.d);
+    let correction = adjoint_correction(si.ng, wi_world, wi, c.d, wo)?;
+    let f = bsdf.eval(wi, wo);
+    Some(throughput * f * (correction * c.weight))
+}
+
+/// Whether nothing lies between the surface point `si` and the camera point `lens`.
+pub(crate) fn sees_camera(
+    scene: &Scene,
+    si: &crate::shape::SurfaceInteraction,
+    lens: Vec3,
+) -> bool {
+    !scene.occluded(&ray_to_camera(si.p, si.p_error, si.ng, lens))
 }
 
 impl ParticleTracer {
@@ -240,13 +268,10 @@ impl ParticleTracer {
 
             // Connect the vertex to the camera.
             if let Some(c) = scene.camera.sample_direction(si.p) {
-                let wo = si.frame.to_local(c.d);
-                if let Some(correction) = adjoint_correction(si.ng, wi_world, wi, c.d, wo) {
-                    let f = bsdf.eval(wi, wo);
-                    let value = throughput * f * (correction * c.weight);
+                if let Some(value) = camera_splat(&si, &bsdf, throughput, wi_world, wi, &c) {
                     if value.max_element() > 0.0 {
                         stats.rays += 1;
-                        if !scene.occluded(&ray_to_camera(si.p, si.p_error, si.ng, c.p)) {
+                        if sees_camera(scene, &si, c.p) {
                             splats.push(Splat {
                                 film: c.film,
                                 value,

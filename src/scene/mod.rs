@@ -167,6 +167,28 @@ impl Scene {
         Self::shadow_ray_from_lanes(l, from, ds)
     }
 
+    /// The shadow ray from `from` to `to` (both already off their surfaces), stopping a
+    /// relative [`SHADOW_EPSILON`] short of `to`.
+    #[inline]
+    pub fn ray_between(from: Vec3, to: Vec3) -> Ray {
+        // Normalised: the BVH's slab test works with the inverse direction, and a tiny
+        // unnormalised segment (a scene scaled by 1e-4) loses precision there.
+        let v = to - from;
+        let len = v.length();
+        Ray::new(from, v / len, len * (1.0 - SHADOW_EPSILON))
+    }
+
+    /// The shadow ray between the surface points `a` and `b`, each end offset off its
+    /// surface towards the other.
+    #[inline]
+    pub fn ray_between_surfaces(a: &SurfaceInteraction, b: &SurfaceInteraction) -> Ray {
+        let d = b.p - a.p;
+        Self::ray_between(
+            offset_ray_origin(a.p, a.p_error, a.ng, d),
+            offset_ray_origin(b.p, b.p_error, b.ng, -d),
+        )
+    }
+
     /// The shadow ray from a point `p` off any surface (a scattering event in a medium) to
     /// the emitter point of `ds`: as [`Scene::shadow_ray`] without the offset at `p`.
     #[inline]
@@ -393,6 +415,32 @@ impl Scene {
     pub fn sample_emitter_direction_at(&self, p: Vec3, u: Vec2) -> Option<DirectionSample> {
         let (ok, ds) = self.sample_emitter_direction_lanes(Scalar, true, p.into(), (u.x, u.y));
         ok.then(|| ds.lane(0))
+    }
+
+    /// [`Scene::sample_emitter_direction_at`], with the index of the emitter chosen: the
+    /// same arithmetic (the width-1 lanes), so that bdpt's next-event estimation draws what
+    /// the path tracer's does, bit for bit.
+    pub fn sample_emitter_direction_indexed(
+        &self,
+        p: Vec3,
+        u: Vec2,
+    ) -> Option<(usize, DirectionSample)> {
+        let (ok, i, ux, pmf) = self.pick_emitter_lanes(Scalar, true, u.x);
+        if !ok {
+            return None;
+        }
+        let (ok, mut ds) = self.emitters[i as usize].sample_direction_lanes(
+            Scalar,
+            true,
+            p.into(),
+            (ux, u.y),
+            &self.shapes,
+        );
+        if !ok {
+            return None;
+        }
+        ds.pdf *= pmf;
+        Some((i as usize, ds.lane(0)))
     }
 
     /// [`Scene::sample_emitter_direction_at`] lane by lane where `m` is set: the emitter

@@ -135,6 +135,10 @@ pub enum SweepMode {
     /// `sampler=NAME,...`: the scene's sampler replaced by each plugin (same sample_count
     /// and seed), unless the scene declares `<default name="sampler">` itself.
     Sampler,
+    /// `integrator=NAME,...`: the scene's integrator switched to each plugin as `penumbra
+    /// render --integrator` does (its max_depth, rr_depth and hide_emitters kept), unless
+    /// the scene declares `<default name="integrator">` itself.
+    SwitchIntegrator,
 }
 
 /// One scene of an experiment: the whole scene, or one value of the sweep.
@@ -189,8 +193,9 @@ fn set_integrator_parameter(desc: &mut SceneDescription, name: &str, value: &str
 /// The scene descriptions of an experiment: `defines` applied to the file at `path`, and for
 /// each value of `sweep` its variant. A swept name the scene uses as `$NAME` is passed like
 /// `-D NAME=value`; if no value changes the scene (no `<default name="NAME">` is used) and
-/// NAME is `max_depth` or `rr_depth`, it is set on the path integrator directly; otherwise
-/// the sweep is refused (it would draw identical curves).
+/// NAME is `max_depth` or `rr_depth`, it is set on the path integrator directly; `sampler`
+/// and `integrator` replace the scene's sampler or switch its integrator; otherwise the
+/// sweep is refused (it would draw identical curves).
 pub fn scene_variants(
     path: &Path,
     defines: &[(String, String)],
@@ -246,11 +251,20 @@ pub fn scene_variants(
         }
         return Ok((variants, Some(SweepMode::Sampler)));
     }
+    if sweep.name == "integrator" {
+        for v in &mut variants {
+            let value = v.value.clone().unwrap_or_default();
+            // The file as loaded without the swept name (which it does not use: no warning).
+            v.description = base.clone();
+            v.description.integrator = base.integrator.switched_to(&value)?;
+        }
+        return Ok((variants, Some(SweepMode::SwitchIntegrator)));
+    }
     if !INTEGRATOR_PARAMETERS.contains(&sweep.name.as_str()) {
         return Err(Error::Invalid(format!(
             "--sweep {0}: no value changes the scene ({1} does not use ${0}); sweep a \
              parameter declared with <default name=\"{0}\">, the path integrator's \
-             max_depth or rr_depth, or the sampler",
+             max_depth or rr_depth, the sampler or the integrator",
             sweep.name,
             path.display()
         )));
@@ -793,6 +807,34 @@ mod tests {
         for bad in ["max_depth", "=1,2", "max_depth=2", "a=1,,2", "a=1,1"] {
             assert!(Sweep::parse(bad).is_err(), "{bad}");
         }
+    }
+
+    fn base_warnings(file: &Path) -> Vec<String> {
+        Scene::load_description(file, &[]).unwrap().warnings
+    }
+
+    /// `integrator=...` on a scene that names its integrator (the Cornell box's `path`,
+    /// max_depth 8) switches it, keeping max_depth, without a warning about an unused
+    /// $integrator; an unknown one is refused.
+    #[test]
+    fn an_integrator_sweep_switches_the_scenes_integrator() {
+        let file = Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes/cornell-box.xml");
+        let sweep = Sweep::parse("integrator=path,bdpt").unwrap();
+        let (v, mode) = scene_variants(&file, &[], Some(&sweep)).unwrap();
+        assert_eq!(mode, Some(SweepMode::SwitchIntegrator));
+        assert!(matches!(
+            v[0].description.integrator,
+            IntegratorDesc::Path { max_depth: 8, .. }
+        ));
+        assert!(matches!(
+            v[1].description.integrator,
+            IntegratorDesc::Bdpt { max_depth: 8, .. }
+        ));
+        assert!(v
+            .iter()
+            .all(|v| v.description.warnings == base_warnings(&file)));
+        let bad = Sweep::parse("integrator=path,nope").unwrap();
+        assert!(scene_variants(&file, &[], Some(&bad)).is_err());
     }
 
     #[test]

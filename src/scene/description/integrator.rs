@@ -1,5 +1,5 @@
-//! Integrators: Mitsuba's `path`, `direct`, `volpath`, `volpathmis` and `ptracer`, and penumbra's `sppm`, optionally wrapped
-//! in `moment`.
+//! Integrators: Mitsuba's `path`, `direct`, `volpath`, `volpathmis` and `ptracer`, and
+//! penumbra's `sppm` and `bdpt`, optionally wrapped in `moment`.
 
 use super::*;
 
@@ -28,6 +28,16 @@ pub enum IntegratorDesc {
         rr_depth: i64,
         hide_emitters: bool,
         samples_per_pass: u32,
+    },
+    /// Bidirectional path tracing (penumbra's own; Mitsuba 3 has none). `max_depth` −1
+    /// means unbounded; `strategy` (s, t) renders that connection strategy alone (for
+    /// debugging), MIS-weighted or not (`strategy_mis`).
+    Bdpt {
+        max_depth: i64,
+        rr_depth: i64,
+        hide_emitters: bool,
+        strategy: Option<(u32, u32)>,
+        strategy_mis: bool,
     },
     /// Stochastic progressive photon mapping (penumbra's own; Mitsuba has none).
     /// `photon_count` 0: one photon per pixel per iteration; `initial_radius` 0: automatic.
@@ -153,6 +163,7 @@ impl Default for RadiosityParams {
 impl IntegratorDesc {
     /// This integrator replaced by `kind` with its defaults, taking this one's `max_depth`,
     /// `rr_depth` and `hide_emitters` where it has them: `path`, `ptracer` (light tracing),
+    /// `bdpt` (bidirectional path tracing),
     /// `sppm` (one photon per pixel per iteration, automatic radius, α = 2/3), `whitted`
     /// (one sample per area light) or `radiosity` (1024 patches, 1024 rays each, final
     /// gather). For rendering a scene written for the path tracer with a light-path
@@ -174,6 +185,12 @@ impl IntegratorDesc {
                     ..
                 }
                 | IntegratorDesc::ParticleTracer {
+                    max_depth,
+                    rr_depth,
+                    hide_emitters,
+                    ..
+                }
+                | IntegratorDesc::Bdpt {
                     max_depth,
                     rr_depth,
                     hide_emitters,
@@ -204,6 +221,13 @@ impl IntegratorDesc {
                 hide_emitters,
                 samples_per_pass: 0,
             },
+            "bdpt" => IntegratorDesc::Bdpt {
+                max_depth,
+                rr_depth,
+                hide_emitters,
+                strategy: None,
+                strategy_mis: true,
+            },
             "sppm" => IntegratorDesc::Sppm {
                 max_depth,
                 photon_count: 0,
@@ -227,7 +251,7 @@ impl IntegratorDesc {
             "radiosity" => IntegratorDesc::Radiosity(RadiosityParams::default()),
             _ => {
                 return Err(Error::Invalid(format!(
-                "unknown integrator '{kind}' (expected path, ptracer, sppm, whitted or radiosity)"
+                "unknown integrator '{kind}' (expected path, ptracer, bdpt, sppm, whitted or radiosity)"
             )))
             }
         })
@@ -319,7 +343,10 @@ fn aov_desc(o: &Object) -> Result<(IntegratorDesc, Option<f64>)> {
         if c.tag != "integrator" {
             return Err(unexpected_child(o, c));
         }
-        if matches!(c.plugin.as_str(), "aov" | "moment" | "ptracer" | "sppm") {
+        if matches!(
+            c.plugin.as_str(),
+            "aov" | "moment" | "ptracer" | "sppm" | "bdpt"
+        ) {
             return Err(Error::scene(
                 &c.location,
                 format!("{} cannot be nested in an aov integrator", describe(c)),
@@ -451,6 +478,52 @@ pub(super) fn integrator_desc(o: &Object) -> Result<(IntegratorDesc, bool, Optio
                 rr_depth,
                 hide_emitters,
                 samples_per_pass: samples_per_pass as u32,
+            }
+        }
+        "bdpt" => {
+            let max_depth = p.int("max_depth", -1)?;
+            let rr_depth = p.int("rr_depth", 5)?;
+            let hide_emitters = p.boolean("hide_emitters", false)?;
+            let strategy_s = p.int("strategy_s", -1)?;
+            let strategy_t = p.int("strategy_t", -1)?;
+            let strategy_mis = p.boolean("strategy_mis", true)?;
+            p.finish()?;
+            check_depths(o, max_depth, rr_depth)?;
+            let bad = |msg: String| Err(Error::scene(&o.location, msg));
+            let strategy = match (strategy_s, strategy_t) {
+                (-1, -1) => None,
+                (s, t) if s >= 0 && t >= 1 && s + t >= 2 && (s, t) != (1, 1) => {
+                    if s > u32::MAX as i64 / 2 || t > u32::MAX as i64 / 2 {
+                        return bad(format!("strategy_s/strategy_t of {} are too large", describe(o)));
+                    }
+                    if max_depth >= 0 && s + t - 1 > max_depth {
+                        return bad(format!(
+                            "strategy ({s}, {t}) of {} makes paths of {} segments, more than                              max_depth {max_depth}",
+                            describe(o),
+                            s + t - 1
+                        ));
+                    }
+                    Some((s as u32, t as u32))
+                }
+                (s, t) => {
+                    return bad(format!(
+                        "strategy_s and strategy_t of {} must be given together, with                          strategy_s >= 0, strategy_t >= 1, s + t >= 2 and (s, t) not (1, 1);                          got ({s}, {t})",
+                        describe(o)
+                    ))
+                }
+            };
+            if strategy.is_none() && p_has(o, "strategy_mis") {
+                return bad(format!(
+                    "strategy_mis of {} needs strategy_s and strategy_t",
+                    describe(o)
+                ));
+            }
+            IntegratorDesc::Bdpt {
+                max_depth,
+                rr_depth,
+                hide_emitters,
+                strategy,
+                strategy_mis,
             }
         }
         "sppm" => {
@@ -639,4 +712,9 @@ pub(super) fn integrator_desc(o: &Object) -> Result<(IntegratorDesc, bool, Optio
         _ => return Err(unsupported_plugin(o)),
     };
     Ok((desc, false, timeout))
+}
+
+/// Whether `o` gives the property `name`.
+fn p_has(o: &Object, name: &str) -> bool {
+    o.properties.iter().any(|q| q.name == name)
 }
