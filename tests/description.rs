@@ -215,11 +215,11 @@ fn rr_depth_must_be_positive() {
 
 #[test]
 fn unknown_integrator_fails() {
-    let xml = with_sensor(r#"<integrator type="bdpt"/>"#);
+    let xml = with_sensor(r#"<integrator type="pssmlt"/>"#);
     assert_error(
         &xml,
         "<integrator",
-        &["unsupported plugin <integrator type=\"bdpt\">"],
+        &["unsupported plugin <integrator type=\"pssmlt\">"],
     );
 }
 
@@ -2155,8 +2155,8 @@ fn direct_and_moment_integrators() {
             "one nested integrator",
         ),
         (
-            r#"<integrator type="bdpt"/>"#,
-            "unsupported plugin <integrator type=\"bdpt\">",
+            r#"<integrator type="pssmlt"/>"#,
+            "unsupported plugin <integrator type=\"pssmlt\">",
         ),
     ] {
         let e = error_body(body);
