@@ -186,36 +186,18 @@ pub struct Frame {
 
 impl Frame {
     /// The branchless orthonormal basis of Duff et al. 2017, "Building an Orthonormal Basis,
-    /// Revisited" (JCGT 6(1)).
+    /// Revisited" (JCGT 6(1)). The width-1 instance of [`Frames::from_normal`].
     pub fn from_normal(n: Vec3) -> Self {
-        let sign = 1.0f32.copysign(n.z);
-        let a = -1.0 / (sign + n.z);
-        let b = n.x * n.y * a;
-        let s = Vec3::new(1.0 + sign * n.x * n.x * a, sign * b, -sign * n.x);
-        let t = Vec3::new(b, sign + n.y * n.y * a, -n.y);
-        Frame { s, t, n }
+        Frames::from_normal(Scalar, n.into()).into()
     }
 
     /// Mitsuba's shading frame (`SurfaceInteraction::initialize_sh_frame`): normal `n`, and
     /// the tangent `dp_du` made orthogonal to it (Gram–Schmidt), so that anisotropic BSDFs
     /// follow the surface's parameterisation. A zero `dp_du` falls back to
     /// [`Frame::from_normal`], as in Mitsuba; so does a `dp_du` parallel to `n` (Mitsuba gives
-    /// NaN there).
+    /// NaN there). The width-1 instance of [`Frames::from_normal_tangent`].
     pub fn from_normal_tangent(n: Vec3, dp_du: Vec3) -> Self {
-        let s = dp_du - n * n.dot(dp_du);
-        // Scale first, so that tiny or huge tangents (scenes scaled by 1e±20) normalise.
-        let m = s.abs().max_element();
-        if !(m > 0.0 && m.is_finite()) {
-            return Self::from_normal(n);
-        }
-        match (s / m).try_normalize() {
-            Some(s) => Frame {
-                s,
-                t: n.cross(s),
-                n,
-            },
-            None => Self::from_normal(n),
-        }
+        Frames::from_normal_tangent(Scalar, n.into(), dp_du.into()).into()
     }
 
     #[inline]
@@ -226,6 +208,118 @@ impl Frame {
     #[inline]
     pub fn to_world(&self, v: Vec3) -> Vec3 {
         self.s * v.x + self.t * v.y + self.n * v.z
+    }
+}
+
+/// Frames in lanes ([`Frame`] per lane).
+#[derive(Clone, Copy, Debug)]
+pub struct Frames<L: Lanes> {
+    pub s: V3<L::F>,
+    pub t: V3<L::F>,
+    pub n: V3<L::F>,
+}
+
+impl<L: Lanes> Frames<L> {
+    /// [`Frame::from_normal`] lane by lane: s = (1 + σ n_x² a, σ b, −σ n_x),
+    /// t = (b, σ + n_y² a, −n_y) with σ = ±1 the sign of n_z, a = −1 / (σ + n_z),
+    /// b = n_x n_y a.
+    #[inline(always)]
+    pub fn from_normal(l: L, n: V3<L::F>) -> Self {
+        let one = l.splat(1.0);
+        let sign = one.copysign(n.z);
+        let a = -one / (sign + n.z);
+        let b = n.x * n.y * a;
+        Frames {
+            s: V3::new(one + sign * n.x * n.x * a, sign * b, -sign * n.x),
+            t: V3::new(b, sign + n.y * n.y * a, -n.y),
+            n,
+        }
+    }
+
+    /// [`Frame::from_normal_tangent`] lane by lane: s = dp_du − n (n · dp_du), scaled by
+    /// its largest |component| and normalised (glam's `try_normalize`), t = n × s; the
+    /// frame of [`Frames::from_normal`] where that fails.
+    #[inline(always)]
+    pub fn from_normal_tangent(l: L, n: V3<L::F>, dp_du: V3<L::F>) -> Self {
+        let zero = l.splat(0.0);
+        let s = dp_du - n * n.dot(dp_du);
+        // Scale first, so that tiny or huge tangents (scenes scaled by 1e±20) normalise.
+        let m = s.abs().max_element();
+        let scaled = m.cmp_gt(zero) & m.is_finite();
+        let s = s / m;
+        let rcp = l.splat(1.0) / s.length();
+        let ok = scaled & rcp.is_finite() & rcp.cmp_gt(zero);
+        let s = s * rcp;
+        let frame = Frames {
+            s,
+            t: n.cross(s),
+            n,
+        };
+        let fallback = !ok;
+        if !fallback.any() {
+            return frame;
+        }
+        Frames::select(fallback, &Frames::from_normal(l, n), &frame)
+    }
+
+    /// `if m { a } else { b }` lane by lane.
+    #[inline(always)]
+    pub fn select(m: L::M, a: &Self, b: &Self) -> Self {
+        Frames {
+            s: V3::select(m, a.s, b.s),
+            t: V3::select(m, a.t, b.t),
+            n: V3::select(m, a.n, b.n),
+        }
+    }
+
+    /// [`Frame::to_local`] lane by lane: (v · s, v · t, v · n).
+    #[inline(always)]
+    pub fn to_local(&self, v: V3<L::F>) -> V3<L::F> {
+        V3::new(v.dot(self.s), v.dot(self.t), v.dot(self.n))
+    }
+
+    /// [`Frame::to_world`] lane by lane: (s v_x + t v_y) + n v_z.
+    #[inline(always)]
+    pub fn to_world(&self, v: V3<L::F>) -> V3<L::F> {
+        self.s * v.x + self.t * v.y + self.n * v.z
+    }
+
+    #[inline(always)]
+    pub fn lane(&self, i: usize) -> Frame {
+        Frame {
+            s: self.s.lane(i),
+            t: self.t.lane(i),
+            n: self.n.lane(i),
+        }
+    }
+
+    #[inline(always)]
+    pub fn set_lane(&mut self, i: usize, f: &Frame) {
+        self.s.set_lane(i, f.s);
+        self.t.set_lane(i, f.t);
+        self.n.set_lane(i, f.n);
+    }
+}
+
+impl From<Frame> for Frames<Scalar> {
+    #[inline(always)]
+    fn from(f: Frame) -> Self {
+        Frames {
+            s: f.s.into(),
+            t: f.t.into(),
+            n: f.n.into(),
+        }
+    }
+}
+
+impl From<Frames<Scalar>> for Frame {
+    #[inline(always)]
+    fn from(f: Frames<Scalar>) -> Self {
+        Frame {
+            s: f.s.into(),
+            t: f.t.into(),
+            n: f.n.into(),
+        }
     }
 }
 

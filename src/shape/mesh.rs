@@ -2,10 +2,13 @@
 //! "Watertight Ray/Triangle Intersection" (JCGT 2(1)), with the conservative `t > 0` bound
 //! of pbrt-v4 §6.8.4 so that a ray leaving a triangle never re-hits it.
 
-use super::{PositionSample, PositionSamples, SurfaceInteraction};
-use crate::geometry::{gamma, Frame};
+use super::{PositionSample, PositionSamples, SurfaceInteraction, SurfaceInteractions};
+use crate::geometry::{gamma, Frames};
 use crate::sampling::{square_to_uniform_triangle_lanes, Distribution1D};
-use crate::simd::{for_each_lane, gather_u32x3, gather_vec3, LaneF32, LaneU32, Lanes, Scalar, V3};
+use crate::simd::{
+    for_each_lane, gather_u32x3, gather_vec2, gather_vec3, LaneF32, LaneMask, LaneU32, Lanes,
+    Scalar, V3,
+};
 use glam::{DVec3, Vec2, Vec3, Vec4};
 
 /// A world-space triangle mesh.
@@ -120,21 +123,6 @@ impl Mesh {
         }
     }
 
-    #[inline]
-    fn face_normal(&self, tri: usize) -> Vec3 {
-        self.face_normals[tri]
-    }
-
-    /// Shading normal at barycentrics (b0, b1, b2), or the face normal. The width-1 instance
-    /// of [`Mesh::shading_normal_lanes`].
-    fn shading_normal(&self, tri: usize, b: [f32; 3], ng: Vec3) -> Vec3 {
-        if self.normals.is_none() {
-            return ng;
-        }
-        self.shading_normal_lanes(Scalar, true, self.triangles[tri], b, ng.into())
-            .into()
-    }
-
     /// The shading normal lane by lane, at barycentrics `b` = (b0, b1, b2) of the triangles
     /// with vertices `v`: Σ bᵢ nᵢ normalised (glam's `normalize_or_zero`), flipped with
     /// `flip_normals`; the geometric normal `ng` where the mesh has no normals or the sum
@@ -158,7 +146,8 @@ impl Mesh {
         V3::select(n.cmp_eq(V3::splat(l.splat(0.0))), ng, n)
     }
 
-    /// The surface interaction at barycentrics (b1, b2) of triangle `tri`.
+    /// The surface interaction at barycentrics (b1, b2) of triangle `tri`. The width-1
+    /// instance of [`Mesh::interaction_lanes`].
     pub fn interaction(
         &self,
         tri: usize,
@@ -167,48 +156,76 @@ impl Mesh {
         b2: f32,
         shape: u32,
     ) -> SurfaceInteraction {
-        let b0 = 1.0 - b1 - b2;
-        let [p0, p1, p2] = self.vertices(tri);
-        let (p, p_error) = barycentric_point([p0, p1, p2], [b0, b1, b2], 7);
-        let ng = self.face_normal(tri);
-        let ns = self.shading_normal(tri, [b0, b1, b2], ng);
-        // Mitsuba's parameterisation: barycentric without texture coordinates (dp/du = p1 −
-        // p0), else the texture coordinates, with an arbitrary basis around the geometric
-        // normal when the triangle's uv map is degenerate.
+        self.interaction_lanes(Scalar, true, tri as u32, t, b1, b2, shape)
+            .into()
+    }
+
+    /// [`Mesh::interaction`] lane by lane where `m` is set (triangles `tri`, distances `t`,
+    /// barycentrics (b1, b2)): the point and its error bound from the gathered vertices,
+    /// the face normal, the shading normal, and Mitsuba's parameterisation (barycentric
+    /// without texture coordinates, dp/du = p1 − p0; else the texture coordinates, with an
+    /// arbitrary basis around the geometric normal where the triangle's uv map is
+    /// degenerate), the shading frame following dp/du.
+    #[allow(clippy::too_many_arguments)]
+    #[inline(always)]
+    pub fn interaction_lanes<L: Lanes>(
+        &self,
+        l: L,
+        m: L::M,
+        tri: L::U32,
+        t: L::F,
+        b1: L::F,
+        b2: L::F,
+        shape: u32,
+    ) -> SurfaceInteractions<L> {
+        let b0 = l.splat(1.0) - b1 - b2;
+        let b = [b0, b1, b2];
+        let v = gather_u32x3(l, &self.triangles, tri, m);
+        let [p0, p1, p2] = v.map(|i| gather_vec3(l, &self.positions, i, m));
+        let (p, p_error) = barycentric_point_lanes(l, [p0, p1, p2], b, 7);
+        let ng = gather_vec3(l, &self.face_normals, tri, m);
+        let ns = self.shading_normal_lanes(l, m, v, b, ng);
         let (dp0, dp1) = (p1 - p0, p2 - p0);
         let (uv, dp_du, dp_dv) = match &self.uvs {
             Some(uvs) => {
-                let [i0, i1, i2] = self.triangles[tri].map(|i| uvs[i as usize]);
-                let uv = i0 * b0 + i1 * b1 + i2 * b2;
-                let (duv0, duv1) = (i1 - i0, i2 - i0);
-                let det = duv0.x * duv1.y - duv0.y * duv1.x;
-                if det != 0.0 && det.is_finite() {
-                    let inv = 1.0 / det;
+                let [t0, t1, t2] = v.map(|i| gather_vec2(l, uvs, i, m));
+                let uv = [
+                    t0[0] * b0 + t1[0] * b1 + t2[0] * b2,
+                    t0[1] * b0 + t1[1] * b1 + t2[1] * b2,
+                ];
+                let duv0 = [t1[0] - t0[0], t1[1] - t0[1]];
+                let duv1 = [t2[0] - t0[0], t2[1] - t0[1]];
+                let det = duv0[0] * duv1[1] - duv0[1] * duv1[0];
+                let inv = l.splat(1.0) / det;
+                let dp_du = (dp0 * duv1[1] - dp1 * duv0[1]) * inv;
+                let dp_dv = (dp1 * duv0[0] - dp0 * duv1[0]) * inv;
+                let degenerate = !(det.cmp_ne(l.splat(0.0)) & det.is_finite());
+                if degenerate.any() {
+                    // Around the normal before flip_normals, as Mitsuba flips last.
+                    let f = Frames::from_normal(l, if self.flip_normals { -ng } else { ng });
                     (
                         uv,
-                        (dp0 * duv1.y - dp1 * duv0.y) * inv,
-                        (dp1 * duv0.x - dp0 * duv1.x) * inv,
+                        V3::select(degenerate, f.s, dp_du),
+                        V3::select(degenerate, f.t, dp_dv),
                     )
                 } else {
-                    // Around the normal before flip_normals, as Mitsuba flips last.
-                    let f = Frame::from_normal(if self.flip_normals { -ng } else { ng });
-                    (uv, f.s, f.t)
+                    (uv, dp_du, dp_dv)
                 }
             }
-            None => (Vec2::new(b1, b2), dp0, dp1),
+            None => ([b1, b2], dp0, dp1),
         };
-        SurfaceInteraction {
+        SurfaceInteractions {
             p,
             p_error,
             t,
             ng,
-            frame: Frame::from_normal_tangent(ns, dp_du),
+            frame: Frames::from_normal_tangent(l, ns, dp_du),
             uv,
             dp_du,
             dp_dv,
-            shape,
-            prim: tri as u32,
-            bary: Vec2::new(b1, b2),
+            shape: l.splat_u32(shape),
+            prim: tri,
+            bary: [b1, b2],
         }
     }
 
@@ -358,14 +375,8 @@ impl UvGrid {
     }
 }
 
-/// The point Σ bᵢ pᵢ and its conservative error bound γ(n) Σ |bᵢ pᵢ| (pbrt-v4 §6.8.2). The
-/// width-1 instance of [`barycentric_point_lanes`].
-fn barycentric_point(p: [Vec3; 3], b: [f32; 3], n: i32) -> (Vec3, Vec3) {
-    let (point, err) = barycentric_point_lanes(Scalar, p.map(V3::from), b, n);
-    (point.into(), err.into())
-}
-
-/// [`barycentric_point`] lane by lane: ((b₀p₀ + b₁p₁) + b₂p₂, γ(n) ((|b₀p₀| + |b₁p₁|) + |b₂p₂|)).
+/// The point Σ bᵢ pᵢ and its conservative error bound γ(n) Σ |bᵢ pᵢ| (pbrt-v4 §6.8.2), lane
+/// by lane: ((b₀p₀ + b₁p₁) + b₂p₂, γ(n) ((|b₀p₀| + |b₁p₁|) + |b₂p₂|)).
 #[inline(always)]
 pub fn barycentric_point_lanes<L: Lanes>(
     l: L,

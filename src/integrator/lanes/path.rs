@@ -20,9 +20,12 @@ use crate::integrator::PathStats;
 use crate::material::ShadingBsdf;
 use crate::sampler::SampleStream;
 use crate::scene::Scene;
-use crate::shape::{SurfaceInteraction, SurfaceLanes};
+use crate::accel::Hit;
+use crate::shape::{ShapeGeometry, SurfaceInteractions};
 use crate::simd::MAX_WIDTH;
-use crate::simd::{dispatch, Backend, LaneF32, LaneMask, LaneProgram, LaneU32, Lanes, V3};
+use crate::simd::{
+    dispatch, for_each_distinct, Backend, LaneF32, LaneMask, LaneProgram, LaneU32, Lanes, V3,
+};
 use crate::spectrum::Spectrum;
 use glam::Vec2;
 
@@ -146,12 +149,11 @@ fn trace_queue<L: Lanes>(
     let width = L::WIDTH;
     let all = l.mask(u32::MAX);
     let mut p = Paths::new(l);
-    // What each lane's ray hit, between the intersection and the later steps.
-    let mut hits: [Option<SurfaceInteraction>; MAX_WIDTH] = [None; MAX_WIDTH];
+    // What each lane's ray hit, and where, between the intersection and the later steps.
+    let mut hits: [Option<Hit>; MAX_WIDTH] = [None; MAX_WIDTH];
+    let mut sis = SurfaceInteractions::zero(l);
     // Where the lanes' materials vary, their BSDFs, filled in place (see `Scene::bsdf_at`).
     let mut bsdf_bufs = vec![ShadingBsdf::new(); width];
-    // What the lane kernels read of the hits of the lanes that scatter.
-    let mut geo = SurfaceLanes::zero(l);
     let mut next = 0usize;
     counters.width = width as u64;
     loop {
@@ -188,11 +190,37 @@ fn trace_queue<L: Lanes>(
             counters.by_depth[d] += 1;
         }
 
-        // 2. Intersect.
+        // 2. Intersect, and the interactions at the hits: on meshes by the lane kernel, one
+        // pass per mesh hit; elsewhere (analytic shapes, instances) lane by lane.
+        let zero = l.splat(0.0);
+        let (mut tri, mut shape) = (l.splat_u32(0), l.splat_u32(0));
+        let (mut t, mut b1, mut b2) = (zero, zero, zero);
+        let mut on_mesh = 0u32;
         for i in lanes_of(active) {
             stats.rays += 1;
-            hits[i] = scene.intersect(&p.st.ray.lane(i));
+            let ray = p.st.ray.lane(i);
+            hits[i] = scene.accel.intersect(&ray, &scene.shapes);
+            let Some(hit) = &hits[i] else {
+                continue;
+            };
+            match scene.accel.mesh_triangle(hit) {
+                Some((s, k)) if matches!(scene.shapes[s as usize].geometry, ShapeGeometry::Mesh(_)) => {
+                    on_mesh |= 1 << i;
+                    shape.set_lane(i, s);
+                    tri.set_lane(i, k);
+                    t.set_lane(i, hit.t);
+                    b1.set_lane(i, hit.b1);
+                    b2.set_lane(i, hit.b2);
+                }
+                _ => sis.set_lane(i, &scene.accel.interaction(hit, &ray, &scene.shapes)),
+            }
         }
+        for_each_distinct(l, shape, l.mask(on_mesh), #[inline(always)] |s, ms| {
+            if let ShapeGeometry::Mesh(mesh) = &scene.shapes[s as usize].geometry {
+                let r = mesh.interaction_lanes(l, ms, tri, t, b1, b2, s);
+                sis = SurfaceInteractions::select(ms, &r, &sis);
+            }
+        });
 
         // 3. Emission where the rays ended; which paths go on.
         let mut scatter = 0u32;
@@ -203,14 +231,13 @@ fn trace_queue<L: Lanes>(
                     path.escape(scene, &mut st);
                     p.finish(i, st.result.into(), out);
                 }
-                Some(si) => match path.at_surface(scene, &mut st, si) {
+                Some(_) => match path.at_surface(scene, &mut st, &sis.lane(i)) {
                     SurfaceStep::End => p.finish(i, st.result.into(), out),
                     SurfaceStep::Trace => p.st.put(l, i, &st),
                     SurfaceStep::Scatter { wi_world } => {
                         p.st.put(l, i, &st);
                         p.wi_world.set_lane(i, wi_world);
                         scatter |= 1 << i;
-                        geo.set_lane(i, si);
                     }
                 },
             }
@@ -228,8 +255,8 @@ fn trace_queue<L: Lanes>(
             &mut p.st,
             scatter,
             #[inline(always)]
-            |i| hits[i].as_ref().expect("a scattering lane has a hit"),
-            &geo,
+            |i| sis.lane(i),
+            &sis,
             p.wi_world,
             &mut p.samplers,
             stats,
