@@ -426,3 +426,64 @@ fn a_sky_seen_from_the_camera_costs_one_ray_per_connection() {
         n * p
     );
 }
+
+/// Russian roulette's survival probability, q = min(max(β) η², 0.95) (Mitsuba's
+/// `ptracer.cpp`), counted: a point light of power W = 4π I = 1.2 at the centre of a glass
+/// sphere (n = 1.5, radius 1) inside a closed diffuse sphere, max_depth 3 and rr_depth 1, so
+/// that every light path meets exactly one roulette decision, right after the glass. Its rays
+/// meet the glass at normal incidence: reflected with probability R = ((n − 1)/(n + 1))²
+/// (η stays 1, β = W: q = 0.95), else transmitted out of the glass (η = 1/n, β = W in
+/// importance mode: q = W/n² = 0.533). The paths ended by roulette are Binomial(N, p) with
+/// p = R · 0.05 + (1 − R)(1 − W/n²) = 0.450; z-test at α = 0.01. Dropping η² from q (q =
+/// β η/η) or adding instead of multiplying (q = β η + η) makes q = 0.95 on both branches
+/// (p = 0.05): a change of variance and ray count that no image mean sees.
+#[test]
+fn roulette_survival_follows_throughput_and_eta_squared() {
+    let (n_glass, power) = (1.5f64, 1.2f64);
+    let intensity = power / (4.0 * std::f64::consts::PI);
+    let xml = format!(
+        r#"<scene version="3.0.0">
+            <integrator type="ptracer">
+                <integer name="max_depth" value="3"/>
+                <integer name="rr_depth" value="1"/>
+            </integrator>
+            {}
+            <shape type="sphere">
+                <float name="radius" value="1"/>
+                <bsdf type="dielectric">
+                    <float name="int_ior" value="{n_glass}"/>
+                    <float name="ext_ior" value="1"/>
+                </bsdf>
+            </shape>
+            <shape type="sphere">
+                <float name="radius" value="3"/>
+                <boolean name="flip_normals" value="true"/>
+                <bsdf type="diffuse"><rgb name="reflectance" value="0.5"/></bsdf>
+            </shape>
+            <emitter type="point"><rgb name="intensity" value="{intensity}"/></emitter>
+        </scene>"#,
+        sensor("0, 2, 0", "0, 2, 1", "0, 1, 0", 50.0, 4)
+    );
+    let scene = scene_from_str(&xml);
+    let out = render_scene(&scene, 1024, SEED, None);
+    let n = out.stats.paths;
+    assert_eq!(n, 4 * 4 * 1024);
+    assert_eq!(out.stats.nonfinite, 0);
+    let r = ((n_glass - 1.0) / (n_glass + 1.0)).powi(2);
+    let p = r * (1.0 - 0.95) + (1.0 - r) * (1.0 - power / (n_glass * n_glass));
+    let ended = out.stats.path.rr_terminated as f64;
+    let nf = n as f64;
+    let z = (ended - nf * p) / (nf * p * (1.0 - p)).sqrt();
+    eprintln!(
+        "{ended} of {n} paths ended by roulette, expected {:.1} (z = {z:.2})",
+        nf * p
+    );
+    assert!(
+        z.abs() < normal_critical_z(0.01),
+        "{ended} of {n} paths ended by roulette, expected {:.1} (z = {z:.2})",
+        nf * p
+    );
+    // Every path meets the glass; every survivor meets a second surface (the spheres are
+    // closed) and ends there at max_depth.
+    assert_eq!(out.stats.path.bounces, 2 * n - out.stats.path.rr_terminated);
+}

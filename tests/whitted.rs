@@ -252,7 +252,7 @@ fn glass_splits_into_fresnel_weighted_reflection_and_refraction() {
             // the pixel is the reflected emitter: F(cos θ) · 10.
             let cos = -d.y;
             // Mitsuba's default ext_ior is air's, 1.000277
-            let f = penumbra::bsdf::fresnel::fresnel_dielectric(cos, 1.5 / 1.000277).f;
+            let f = fresnel_reflectance(cos as f64, 1.000277, 1.5) as f32;
             let got = li(&with_glass, pixel, 0);
             let expected = f * 10.0;
             assert!(

@@ -54,6 +54,14 @@ impl Layout {
         }
         Layout::Wide4
     }
+
+    /// Primitives per leaf block: 4 or 8.
+    fn block_width(self) -> u32 {
+        match self {
+            Layout::Wide4 => 4,
+            Layout::Wide8 => 8,
+        }
+    }
 }
 
 /// A primitive as the BVH sees it: triangle `index` of mesh `shape`, an analytic shape
@@ -263,6 +271,20 @@ struct LeafContext<'a> {
 /// the hierarchy that was hit).
 type InnerHit = Hit;
 
+#[cfg(test)]
+thread_local! {
+    /// Inner nodes whose children's boxes traversals on this thread have tested. Unit tests
+    /// only: the library outside `cfg(test)` has no counter, so its traversal is unchanged.
+    static NODE_VISITS: std::cell::Cell<u64> = const { std::cell::Cell::new(0) };
+}
+
+/// Counts one inner node's box test (unit tests only, see [`NODE_VISITS`]).
+#[cfg(test)]
+#[inline(always)]
+fn count_node_visit() {
+    NODE_VISITS.with(|c| c.set(c.get() + 1));
+}
+
 /// Traversal stack depth without heap allocation; deeper trees (degenerate input) fall back
 /// to a heap-allocated stack.
 const STACK: usize = 128;
@@ -438,7 +460,14 @@ impl Accel {
         } else {
             layout
         };
-        Self::build_in_layout(shapes, 0..shapes.len(), Vec::new(), Vec::new(), layout)
+        Self::build_in_layout(
+            shapes,
+            0..shapes.len(),
+            Vec::new(),
+            Vec::new(),
+            layout,
+            layout.block_width(),
+        )
     }
 
     /// The layout this hierarchy was built in.
@@ -469,15 +498,27 @@ impl Accel {
         instances: Vec<Instance>,
         groups: Vec<Group>,
     ) -> Self {
-        Self::build_in_layout(shapes, range, instances, groups, Layout::best())
+        let layout = Layout::best();
+        Self::build_in_layout(
+            shapes,
+            range,
+            instances,
+            groups,
+            layout,
+            layout.block_width(),
+        )
     }
 
+    /// The hierarchy in `layout`, whose binary BVH has leaves of at most
+    /// `max_prims_per_leaf` primitives (the block width, so that a leaf is one block, except
+    /// in the tests of leaves that span several blocks).
     fn build_in_layout(
         shapes: &[Shape],
         range: std::ops::Range<usize>,
         instances: Vec<Instance>,
         groups: Vec<Group>,
         layout: Layout,
+        max_prims_per_leaf: u32,
     ) -> Self {
         let mut prims = Vec::new();
         for i in range {
@@ -536,10 +577,7 @@ impl Accel {
             &bounded,
             BvhBuildParams {
                 // One leaf block's worth: its primitives are tested at once.
-                max_prims_per_leaf: match layout {
-                    Layout::Wide4 => 4,
-                    Layout::Wide8 => 8,
-                },
+                max_prims_per_leaf,
                 ..BvhBuildParams::medium_build()
             },
             &mut Duration::default(),
@@ -780,6 +818,8 @@ impl Accel {
             // Descend through inner nodes, nearest child first.
             while node & LEAF == 0 {
                 let n = &self.nodes[node as usize];
+                #[cfg(test)]
+                count_node_visit();
                 let (mask, t_near) = boxes.test(n, tmax);
                 if mask == 0 {
                     node = EMPTY;
@@ -1153,10 +1193,23 @@ mod tests {
             .collect();
         for layout in [Layout::Wide4, Layout::Wide8] {
             let group = Group {
-                accel: Accel::build_in_layout(&shapes, 0..1, vec![], vec![], layout),
+                accel: Accel::build_in_layout(
+                    &shapes,
+                    0..1,
+                    vec![],
+                    vec![],
+                    layout,
+                    layout.block_width(),
+                ),
             };
-            let accel =
-                Accel::build_in_layout(&shapes, 1..1, instances.clone(), vec![group], layout);
+            let accel = Accel::build_in_layout(
+                &shapes,
+                1..1,
+                instances.clone(),
+                vec![group],
+                layout,
+                layout.block_width(),
+            );
             let mut hits = 0;
             for i in 0..20000 {
                 // A point on a random face of a random instance, in world space.
@@ -1180,6 +1233,229 @@ mod tests {
                 hits += expected.is_some() as u32;
             }
             assert!(hits > 15000, "{layout:?}: {hits} hits");
+        }
+    }
+
+    /// A point with coordinates uniform in [−s, s).
+    fn v3(rng: &mut rand_pcg::Pcg32, s: f32) -> Vec3 {
+        Vec3::new(
+            rng.random_range(-s..s),
+            rng.random_range(-s..s),
+            rng.random_range(-s..s),
+        )
+    }
+
+    /// Leaf blocks followed by another block of the same leaf, in either layout.
+    fn chained_blocks(accel: &Accel) -> usize {
+        #[cfg(target_arch = "x86_64")]
+        if let Some(w) = &accel.wide8 {
+            return w.chained_blocks();
+        }
+        accel.leaves.iter().filter(|b| b.more).count()
+    }
+
+    /// Leaf blocks, in either layout.
+    fn leaf_blocks(accel: &Accel) -> usize {
+        #[cfg(target_arch = "x86_64")]
+        if let Some(w) = &accel.wide8 {
+            return w.leaf_blocks();
+        }
+        accel.leaves.len()
+    }
+
+    /// Runs `body` on a thread of its own and fails if it has not returned within `secs`
+    /// seconds (an endless loop in the traversal), or with the thread's own panic.
+    fn within_seconds(secs: u64, body: impl FnOnce() + Send + 'static) {
+        use std::sync::mpsc::{channel, RecvTimeoutError};
+        let (tx, rx) = channel();
+        let worker = std::thread::spawn(move || {
+            body();
+            let _ = tx.send(());
+        });
+        match rx.recv_timeout(Duration::from_secs(secs)) {
+            Err(RecvTimeoutError::Timeout) => {
+                panic!("the traversal did not return within {secs} s (an endless loop?)")
+            }
+            Ok(()) | Err(RecvTimeoutError::Disconnected) => {
+                if let Err(e) = worker.join() {
+                    std::panic::resume_unwind(e);
+                }
+            }
+        }
+    }
+
+    /// Leaves of up to 32 primitives (the builder's limit raised above the block width, as
+    /// obvhs's default of 8 would do for the 4-wide layout, or another obvhs release might):
+    /// each such leaf spans several leaf blocks chained by `more`, and the traversal must
+    /// test every block of the chain and stop after its last. Two stacks of 32 parallel
+    /// triangles in shuffled order (each one leaf) and a soup of 600 triangles, against
+    /// brute force, in both layouts.
+    /// The work runs on a thread of its own and the test fails if it has not returned in 60 s
+    /// (it takes well under one): a chain walked without advancing never ends.
+    #[test]
+    fn leaves_of_several_blocks_are_tested_block_by_block() {
+        within_seconds(60, || {
+            let mut rng = rand_pcg::Pcg32::seed_from_u64(44);
+            // Two stacks of 32 (obvhs collapses nothing in a tree of at most 2 · 32 + 1
+            // nodes), 5 apart, their layers 0.001 apart: splitting a stack shrinks no box
+            // enough to pay for a node, so each becomes one leaf.
+            let mut order: Vec<u32> = (0..64).collect();
+            for i in (1..order.len()).rev() {
+                order.swap(i, rng.random_range(0..=i));
+            }
+            let stack: Vec<Vec3> = order
+                .iter()
+                .flat_map(|&i| {
+                    let (x, z) = (5.0 * (i / 32) as f32, 0.001 * (i % 32) as f32);
+                    [
+                        Vec3::new(x, 0.0, z),
+                        Vec3::new(x + 1.0, 0.0, z),
+                        Vec3::new(x, 1.0, z),
+                    ]
+                })
+                .collect();
+            let stack = Mesh::new(
+                stack,
+                None,
+                None,
+                (0..64u32).map(|i| [3 * i, 3 * i + 1, 3 * i + 2]).collect(),
+                false,
+            );
+            let mut soup = Vec::new();
+            for _ in 0..600 {
+                let c = v3(&mut rng, 2.0);
+                soup.extend([
+                    c + v3(&mut rng, 0.3),
+                    c + v3(&mut rng, 0.3),
+                    c + v3(&mut rng, 0.3),
+                ]);
+            }
+            let soup = Mesh::new(
+                soup,
+                None,
+                None,
+                (0..600u32).map(|i| [3 * i, 3 * i + 1, 3 * i + 2]).collect(),
+                false,
+            );
+            let scenes = [
+                vec![shape(ShapeGeometry::Mesh(stack))],
+                vec![shape(ShapeGeometry::Mesh(soup))],
+            ];
+            for layout in [Layout::Wide4, Layout::Wide8] {
+                let layout = if layout == Layout::Wide8 {
+                    Layout::best()
+                } else {
+                    layout
+                };
+                // The default build makes leaves of one block each (the builder's limit is
+                // the block width), filled more than half on average: the 64 triangles take
+                // 17 blocks of 4 or 9 of 8 (2026-12-02).
+                let width = match layout {
+                    Layout::Wide4 => 4,
+                    Layout::Wide8 => 8,
+                };
+                let accel = Accel::build_with_layout(&scenes[0], layout);
+                let blocks = leaf_blocks(&accel);
+                assert_eq!(
+                    chained_blocks(&accel),
+                    0,
+                    "{layout:?}: a leaf of several blocks"
+                );
+                assert!(
+                    blocks <= 2 * 64 / width,
+                    "{layout:?}: {blocks} leaf blocks for 64 triangles"
+                );
+                for (k, shapes) in scenes.iter().enumerate() {
+                    let range = 0..shapes.len();
+                    let accel = Accel::build_in_layout(shapes, range, vec![], vec![], layout, 32);
+                    if k == 0 {
+                        assert!(
+                            chained_blocks(&accel) == 2 * (32 / width - 1),
+                            "{layout:?}: each stack of 32 must be one leaf of chained blocks"
+                        );
+                    }
+                    let mut hits = 0;
+                    for i in 0..5000 {
+                        let target = if k == 0 {
+                            // A point inside the stack's footprint, between its layers.
+                            let a = rng.random_range(0.0..1.0);
+                            let b = rng.random_range(0.0..1.0);
+                            let (a, b): (f32, f32) = if a + b > 1.0 {
+                                (1.0 - a, 1.0 - b)
+                            } else {
+                                (a, b)
+                            };
+                            let x = 5.0 * rng.random_range(0..2) as f32;
+                            Vec3::new(x + a, b, rng.random_range(-0.005..0.036))
+                        } else {
+                            v3(&mut rng, 2.0)
+                        };
+                        let o = target + v3(&mut rng, 3.0);
+                        let ray = Ray::new(o, target - o, f32::INFINITY);
+                        let expected = brute_force(shapes, &ray);
+                        let got = accel.intersect(&ray, shapes).map(|h| h.t);
+                        assert_eq!(expected, got, "{layout:?} scene {k} ray {i}");
+                        assert_eq!(expected.is_some(), accel.occluded(&ray, shapes));
+                        hits += expected.is_some() as u32;
+                    }
+                    assert!(hits > 1000, "{layout:?} scene {k}: {hits} hits");
+                }
+            }
+        });
+    }
+
+    /// Box culling, counted: rays that pass a mesh at a distance (their closest approach to
+    /// the centre of its unit-cube bounds is at least 1, beyond the cube's half-diagonal
+    /// 0.87) test the root's children and enter none: exactly one node visit per query, in
+    /// both layouts. A slab test that stopped culling boxes the ray passes ahead of it (the
+    /// far distance widened by 2/γ(3) instead of 2γ(3)) would keep every hit and image, and
+    /// only this count sees it.
+    #[test]
+    fn rays_that_pass_a_mesh_visit_only_the_root() {
+        let mut rng = rand_pcg::Pcg32::seed_from_u64(45);
+        let mut positions = Vec::new();
+        for _ in 0..500 {
+            let c = (v3(&mut rng, 0.5) + 0.5) * 0.9 + Vec3::splat(0.05);
+            positions.extend([
+                c + ((v3(&mut rng, 0.5) + 0.5) - 0.5) * 0.1,
+                c + ((v3(&mut rng, 0.5) + 0.5) - 0.5) * 0.1,
+                c + ((v3(&mut rng, 0.5) + 0.5) - 0.5) * 0.1,
+            ]);
+        }
+        let mesh = Mesh::new(
+            positions,
+            None,
+            None,
+            (0..500u32).map(|i| [3 * i, 3 * i + 1, 3 * i + 2]).collect(),
+            false,
+        );
+        let shapes = vec![shape(ShapeGeometry::Mesh(mesh))];
+        let centre = Vec3::splat(0.5);
+        for layout in [Layout::Wide4, Layout::Wide8] {
+            let accel = Accel::build_with_layout(&shapes, layout);
+            NODE_VISITS.with(|c| c.set(0));
+            let rays = 2000;
+            for i in 0..rays {
+                let d = ((v3(&mut rng, 0.5) + 0.5) - 0.5).normalize();
+                // An offset perpendicular to d, of length 1 to 2.
+                let u = d.any_orthonormal_vector();
+                let w = d.cross(u);
+                let phi = rng.random_range(0.0..std::f32::consts::TAU);
+                let off = (u * phi.cos() + w * phi.sin()) * rng.random_range(1.0..2.0);
+                let o = centre + off - 4.0 * d;
+                let ray = Ray::new(o, d, f32::INFINITY);
+                assert!(
+                    accel.intersect(&ray, &shapes).is_none(),
+                    "{layout:?} ray {i}"
+                );
+                assert!(!accel.occluded(&ray, &shapes), "{layout:?} ray {i}");
+            }
+            let visits = NODE_VISITS.with(|c| c.get());
+            assert_eq!(
+                visits,
+                2 * rays,
+                "{layout:?}: {visits} node visits for {rays} rays, each traced twice"
+            );
         }
     }
 

@@ -283,6 +283,19 @@ impl Wide8 {
     pub(super) fn is_empty(&self) -> bool {
         self.root == EMPTY
     }
+
+    /// Leaf blocks followed by another block of the same leaf (unit tests: whether a tree
+    /// has leaves of more than eight primitives).
+    #[cfg(test)]
+    pub(super) fn chained_blocks(&self) -> usize {
+        self.leaves.iter().filter(|b| b.more).count()
+    }
+
+    /// Leaf blocks (unit tests).
+    #[cfg(test)]
+    pub(super) fn leaf_blocks(&self) -> usize {
+        self.leaves.len()
+    }
 }
 
 /// Which nodes of a binary BVH become one leaf block: its leaves, and every inner node of at
@@ -607,6 +620,8 @@ impl Accel {
             // Descend through inner nodes, nearest child first.
             while node & LEAF == 0 {
                 let n = &wide.nodes[node as usize];
+                #[cfg(test)]
+                super::count_node_visit();
                 let (mask, t_near) = boxes.test(n, tmax);
                 if mask == 0 {
                     node = EMPTY;

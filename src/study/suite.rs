@@ -177,13 +177,29 @@ pub fn z_test(
 /// Renders one scene as Mitsuba's test does and judges it; `threads` as in
 /// [`RenderSettings::threads`].
 pub fn run(scene: &SuiteScene, threads: Option<usize>) -> Outcome {
-    match try_run(scene, threads) {
-        Ok(j) => Outcome::Judged(j),
-        Err(e) => Outcome::Unsupported(e.to_string()),
+    run_with(scene, threads, &mut |_| true)
+        .unwrap_or_else(|| Outcome::Unsupported(format!("{}: not run", scene.name)))
+}
+
+/// [`run`] with the loaded scene changed by `adjust` before the render (a negative control:
+/// one bounce short, say); `None` where `adjust` declines the scene (returns false).
+pub fn run_with(
+    scene: &SuiteScene,
+    threads: Option<usize>,
+    adjust: &mut dyn FnMut(&mut Job) -> bool,
+) -> Option<Outcome> {
+    match try_run(scene, threads, adjust) {
+        Ok(Some(j)) => Some(Outcome::Judged(j)),
+        Ok(None) => None,
+        Err(e) => Some(Outcome::Unsupported(e.to_string())),
     }
 }
 
-fn try_run(scene: &SuiteScene, threads: Option<usize>) -> Result<Judgement, Error> {
+fn try_run(
+    scene: &SuiteScene,
+    threads: Option<usize>,
+    adjust: &mut dyn FnMut(&mut Job) -> bool,
+) -> Result<Option<Judgement>, Error> {
     let reference = exr::read(&scene.reference)?;
     let variance = exr::read(&scene.variance)?;
     let pixels = reference.width * reference.height;
@@ -198,7 +214,10 @@ fn try_run(scene: &SuiteScene, threads: Option<usize>) -> Result<Judgement, Erro
         ("spp".to_string(), spp.to_string()),
         ("integrator".to_string(), scene.integrator.clone()),
     ];
-    let job = Job::load(&scene.path, &defines)?;
+    let mut job = Job::load(&scene.path, &defines)?;
+    if !adjust(&mut job) {
+        return Ok(None);
+    }
     let loaded = &job.scene;
     if loaded.width != reference.width || loaded.height != reference.height {
         return Err(Error::Invalid(format!(
@@ -238,7 +257,7 @@ fn try_run(scene: &SuiteScene, threads: Option<usize>) -> Result<Judgement, Erro
     let reference_mean = [0, 1, 2].map(|c| mean(&reference.rgb, c));
     let mean_z = [0, 1, 2]
         .map(|c| (mean(&image, c) - reference_mean[c]) / mean_se[c].max(f64::MIN_POSITIVE));
-    Ok(Judgement {
+    Ok(Some(Judgement {
         spp,
         pixels,
         pass_fraction,
@@ -248,7 +267,7 @@ fn try_run(scene: &SuiteScene, threads: Option<usize>) -> Result<Judgement, Erro
         mean_z,
         reference_mean,
         seconds,
-    })
+    }))
 }
 
 #[cfg(test)]

@@ -142,3 +142,37 @@ pub fn compare_instanced_hits(
     }
     hits
 }
+
+/// The unpolarised reflectance of a smooth interface from a medium of index `n_i` into one of
+/// index `n_t`, at incidence cosine `cos_i` ∈ [0, 1], in f64: Fresnel's equations in their
+/// angle form (Born and Wolf, "Principles of Optics", §1.5.2), R_s = sin²(θi − θt) /
+/// sin²(θi + θt) and R_p = tan²(θi − θt) / tan²(θi + θt), with θt from Snell's law
+/// n_i sin θi = n_t sin θt, and R = (R_s + R_p)/2; 1 beyond the critical angle, and
+/// ((n_i − n_t)/(n_i + n_t))² at normal incidence (the limit of both). Written from the
+/// physics, independently of penumbra's `fresnel_dielectric` (the amplitude form in
+/// cosines), so that tests of glass do not check penumbra against itself.
+pub fn fresnel_reflectance(cos_i: f64, n_i: f64, n_t: f64) -> f64 {
+    let theta_i = cos_i.clamp(0.0, 1.0).acos();
+    let sin_t = n_i / n_t * theta_i.sin();
+    if sin_t >= 1.0 {
+        return 1.0;
+    }
+    if theta_i == 0.0 {
+        return ((n_i - n_t) / (n_i + n_t)).powi(2);
+    }
+    let theta_t = sin_t.asin();
+    let (minus, plus) = (theta_i - theta_t, theta_i + theta_t);
+    let rs = (minus.sin() / plus.sin()).powi(2);
+    let rp = (minus.tan() / plus.tan()).powi(2);
+    0.5 * (rs + rp)
+}
+
+/// [`fresnel_reflectance`] in Mitsuba's convention for a dielectric of relative index `eta`
+/// (inside over outside): `cos_theta` > 0 on the outside, < 0 on the inside.
+pub fn fresnel_of_side(cos_theta: f64, eta: f64) -> f64 {
+    if cos_theta >= 0.0 {
+        fresnel_reflectance(cos_theta, 1.0, eta)
+    } else {
+        fresnel_reflectance(-cos_theta, eta, 1.0)
+    }
+}
