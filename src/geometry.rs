@@ -520,4 +520,153 @@ mod tests {
             moved(-1.0)
         );
     }
+
+    /// `Frame::from_normal` as it was before the lane kernel (issue 42, step 3b).
+    fn from_normal_reference(n: Vec3) -> Frame {
+        let sign = 1.0f32.copysign(n.z);
+        let a = -1.0 / (sign + n.z);
+        let b = n.x * n.y * a;
+        let s = Vec3::new(1.0 + sign * n.x * n.x * a, sign * b, -sign * n.x);
+        let t = Vec3::new(b, sign + n.y * n.y * a, -n.y);
+        Frame { s, t, n }
+    }
+
+    /// `Frame::from_normal_tangent` as it was before the lane kernel (issue 42, step 3b):
+    /// the oracle of [`Frames::from_normal_tangent`].
+    fn from_normal_tangent_reference(n: Vec3, dp_du: Vec3) -> Frame {
+        let s = dp_du - n * n.dot(dp_du);
+        let m = s.abs().max_element();
+        if !(m > 0.0 && m.is_finite()) {
+            return from_normal_reference(n);
+        }
+        match (s / m).try_normalize() {
+            Some(s) => Frame {
+                s,
+                t: n.cross(s),
+                n,
+            },
+            None => from_normal_reference(n),
+        }
+    }
+
+    /// Random (normal, tangent) pairs with the edges of the shading frame: zero, tiny
+    /// (1e-30) and huge (1e30) tangents, tangents parallel to the normal, infinite and NaN
+    /// components, normals along ±z (the branch point of `from_normal`), ±0.
+    fn frame_cases() -> Vec<[Vec3; 2]> {
+        use rand::{RngExt, SeedableRng};
+        let mut rng = rand_pcg::Pcg32::seed_from_u64(0xf4a3e5);
+        let unit = |rng: &mut rand_pcg::Pcg32| {
+            Vec3::new(
+                rng.random_range(-1.0f32..1.0),
+                rng.random_range(-1.0f32..1.0),
+                rng.random_range(-1.0f32..1.0),
+            )
+            .normalize_or_zero()
+        };
+        let special = [
+            Vec3::Z,
+            -Vec3::Z,
+            Vec3::new(0.0, -0.0, -0.0),
+            Vec3::new(-0.0, 0.0, 1.0),
+            Vec3::new(1e-8, 0.0, -1.0).normalize(),
+            Vec3::X,
+        ];
+        (0..16 * 2048)
+            .map(|_| {
+                let n = match rng.random_range(0..4) {
+                    0 => special[rng.random_range(0..special.len())],
+                    _ => unit(&mut rng),
+                };
+                let t = unit(&mut rng) * rng.random_range(0.1f32..10.0);
+                let dp_du = match rng.random_range(0..12) {
+                    0 => Vec3::ZERO,
+                    1 => t * 1e-30,
+                    2 => t * 1e30,
+                    3 => n * rng.random_range(-3.0f32..3.0),
+                    4 => Vec3::new(f32::INFINITY, t.y, t.z),
+                    5 => Vec3::new(t.x, f32::NAN, t.z),
+                    6 => Vec3::new(1e-42, -1e-42, 0.0),
+                    7 => n + t * 1e-7,
+                    _ => t,
+                };
+                [n, dp_du]
+            })
+            .collect()
+    }
+
+    struct FrameProgram<'a>(&'a [[Vec3; 2]]);
+
+    impl crate::simd::LaneProgram for FrameProgram<'_> {
+        type Output = Vec<[Frame; 2]>;
+        #[inline(always)]
+        fn run<L: Lanes>(self, l: L) -> Vec<[Frame; 2]> {
+            let mut out = Vec::with_capacity(self.0.len());
+            for chunk in self.0.chunks(L::WIDTH) {
+                let mut v = [V3::splat(l.splat(0.0)); 2];
+                for (i, c) in chunk.iter().enumerate() {
+                    v[0].set_lane(i, c[0]);
+                    v[1].set_lane(i, c[1]);
+                }
+                let f = Frames::from_normal_tangent(l, v[0], v[1]);
+                let g = Frames::from_normal(l, v[0]);
+                out.extend((0..chunk.len()).map(|i| [f.lane(i), g.lane(i)]));
+            }
+            out
+        }
+    }
+
+    /// The shading frames in lanes against the scalar code of before, lane by lane, on
+    /// every backend this processor runs; the public scalar functions are the width-1
+    /// instances.
+    #[test]
+    fn frames_in_lanes_match_the_scalar_code_bit_for_bit() {
+        let cases = frame_cases();
+        let want: Vec<[Frame; 2]> = cases
+            .iter()
+            .map(|c| {
+                [
+                    from_normal_tangent_reference(c[0], c[1]),
+                    from_normal_reference(c[0]),
+                ]
+            })
+            .collect();
+        let bits = |f: &[Frame; 2]| {
+            f.iter()
+                .flat_map(|f| [f.s, f.t, f.n])
+                .flat_map(|v| v.to_array())
+                .map(|x| if x.is_nan() { u32::MAX } else { x.to_bits() })
+                .collect::<Vec<u32>>()
+        };
+        let mut backends = 0;
+        for b in crate::simd::Backend::ALL
+            .into_iter()
+            .filter(|b| b.supported())
+        {
+            backends += 1;
+            let got = crate::simd::dispatch(b, FrameProgram(&cases)).expect("supported");
+            for (k, (g, w)) in got.iter().zip(&want).enumerate() {
+                assert_eq!(bits(g), bits(w), "{b}: case {k} {:?}", cases[k]);
+            }
+        }
+        assert!(backends >= 2);
+        for (c, w) in cases.iter().zip(&want) {
+            let g = [
+                Frame::from_normal_tangent(c[0], c[1]),
+                Frame::from_normal(c[0]),
+            ];
+            assert_eq!(bits(&g), bits(w), "{c:?}");
+        }
+        // the cases reach both ways: the tangent followed, and the fallback taken
+        let fallback = cases
+            .iter()
+            .zip(&want)
+            .filter(|(c, w)| w[0].s == w[1].s && c[1] != Vec3::ZERO)
+            .count();
+        let followed = cases
+            .iter()
+            .zip(&want)
+            .filter(|(_, w)| w[0].s != w[1].s && w[0].s.is_finite())
+            .count();
+        assert!(fallback > 1000 && followed > 10000, "{fallback} {followed}");
+    }
 }

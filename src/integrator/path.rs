@@ -197,7 +197,8 @@ impl PathIntegrator {
     /// Returns the lanes whose path goes on.
     ///
     /// Ported to lane kernels: emitter sampling (pick, point, solid-angle density), the
-    /// shadow rays, the ray-origin offsets, MIS and the roulette's arithmetic. Still lane by
+    /// shadow rays, the ray-origin offsets, MIS, the roulette's arithmetic, and the
+    /// directions' changes of frame (world to the shading frame and back). Still lane by
     /// lane: the BSDFs (eval, pdf, sample), the shadow rays' traversal, the sample draws.
     #[allow(clippy::too_many_arguments)]
     #[inline(always)]
@@ -238,17 +239,7 @@ impl PathIntegrator {
                 }
             },
         );
-        self.next_event_lanes(
-            l,
-            scene,
-            st,
-            l.mask(smooth),
-            sis,
-            wi,
-            (u0, u1),
-            stats,
-            bufs,
-        );
+        self.next_event_lanes(l, scene, st, l.mask(smooth), sis, wi, (u0, u1), stats, bufs);
         let go = self.sample_bsdf_lanes(l, scene, st, m, sis, wi, samplers, bufs);
         self.roulette_lanes(l, st, go, samplers, stats)
     }

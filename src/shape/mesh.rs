@@ -1053,4 +1053,228 @@ mod tests {
         }
         assert!(checked > 10000, "{checked}");
     }
+
+    /// `Mesh::interaction` as it was before the lane kernel (issue 42, step 3b): the oracle
+    /// of [`Mesh::interaction_lanes`]. (Its shading frame is `Frame::from_normal_tangent`,
+    /// which `geometry`'s tests hold to the scalar code of before.)
+    fn interaction_reference(m: &Mesh, tri: usize, t: f32, b1: f32, b2: f32) -> SurfaceInteraction {
+        use crate::geometry::Frame;
+        let b0 = 1.0 - b1 - b2;
+        let [p0, p1, p2] = m.vertices(tri);
+        let q = [p0 * b0, p1 * b1, p2 * b2];
+        let p = q[0] + q[1] + q[2];
+        let p_error = (q[0].abs() + q[1].abs() + q[2].abs()) * gamma(7);
+        let ng = m.face_normals[tri];
+        let ns = match &m.normals {
+            None => ng,
+            Some(normals) => {
+                let [i0, i1, i2] = m.triangles[tri];
+                let n = normals[i0 as usize] * b0
+                    + normals[i1 as usize] * b1
+                    + normals[i2 as usize] * b2;
+                let n = n.normalize_or_zero();
+                if n == Vec3::ZERO {
+                    ng
+                } else if m.flip_normals {
+                    -n
+                } else {
+                    n
+                }
+            }
+        };
+        let (dp0, dp1) = (p1 - p0, p2 - p0);
+        let (uv, dp_du, dp_dv) = match &m.uvs {
+            Some(uvs) => {
+                let [i0, i1, i2] = m.triangles[tri].map(|i| uvs[i as usize]);
+                let uv = i0 * b0 + i1 * b1 + i2 * b2;
+                let (duv0, duv1) = (i1 - i0, i2 - i0);
+                let det = duv0.x * duv1.y - duv0.y * duv1.x;
+                if det != 0.0 && det.is_finite() {
+                    let inv = 1.0 / det;
+                    (
+                        uv,
+                        (dp0 * duv1.y - dp1 * duv0.y) * inv,
+                        (dp1 * duv0.x - dp0 * duv1.x) * inv,
+                    )
+                } else {
+                    let f = Frame::from_normal(if m.flip_normals { -ng } else { ng });
+                    (uv, f.s, f.t)
+                }
+            }
+            None => (Vec2::new(b1, b2), dp0, dp1),
+        };
+        SurfaceInteraction {
+            p,
+            p_error,
+            t,
+            ng,
+            frame: Frame::from_normal_tangent(ns, dp_du),
+            uv,
+            dp_du,
+            dp_dv,
+            shape: 5,
+            prim: tri as u32,
+            bary: Vec2::new(b1, b2),
+        }
+    }
+
+    /// Every field's bits (NaN as one value: a computed NaN's payload is not specified).
+    fn interaction_bits(si: &SurfaceInteraction) -> Vec<u32> {
+        let f = [si.p, si.p_error, si.ng, si.frame.s, si.frame.t, si.frame.n]
+            .into_iter()
+            .chain([si.dp_du, si.dp_dv])
+            .flat_map(|v| v.to_array())
+            .chain([si.t, si.uv.x, si.uv.y, si.bary.x, si.bary.y])
+            .map(|x| if x.is_nan() { u32::MAX } else { x.to_bits() });
+        f.chain([si.shape, si.prim]).collect()
+    }
+
+    /// A hit: triangle, t, b1, b2, and whether its lane is active.
+    type HitCase = (u32, f32, f32, f32, bool);
+
+    struct Interactions<'a> {
+        mesh: &'a Mesh,
+        hits: &'a [HitCase],
+    }
+
+    impl crate::simd::LaneProgram for Interactions<'_> {
+        type Output = Vec<Option<SurfaceInteraction>>;
+        #[inline(always)]
+        fn run<L: Lanes>(self, l: L) -> Self::Output {
+            let mut out = Vec::with_capacity(self.hits.len());
+            for chunk in self.hits.chunks(L::WIDTH) {
+                let mut tri = l.splat_u32(0);
+                let (mut t, mut b1, mut b2) = (l.splat(0.0), l.splat(0.0), l.splat(0.0));
+                let mut bits = 0u32;
+                for (i, &(k, tk, u, v, a)) in chunk.iter().enumerate() {
+                    tri.set_lane(i, k);
+                    t.set_lane(i, tk);
+                    b1.set_lane(i, u);
+                    b2.set_lane(i, v);
+                    bits |= (a as u32) << i;
+                }
+                let r = self
+                    .mesh
+                    .interaction_lanes(l, l.mask(bits), tri, t, b1, b2, 5);
+                out.extend((0..chunk.len()).map(|i| (bits >> i & 1 != 0).then(|| r.lane(i))));
+            }
+            out
+        }
+    }
+
+    /// The mesh interaction in lanes against the scalar code of before, lane by lane, on
+    /// every backend this processor runs: with and without vertex normals and texture
+    /// coordinates, either orientation, zero-area triangles, vertex normals summing to zero,
+    /// degenerate uv maps (repeated, collinear and infinite texture coordinates), edge
+    /// barycentrics; inactive lanes hold out-of-range triangles, which no gather may read.
+    #[test]
+    fn interaction_in_lanes_matches_the_scalar_code_bit_for_bit() {
+        use rand::{RngExt, SeedableRng};
+        let mut rng = rand_pcg::Pcg32::seed_from_u64(0x3b1a7e);
+        let edges = [0.0, 1.0, 1e-30, 0.5, 1.0 - f32::EPSILON / 2.0];
+        let mut checked = [0usize; 2];
+        for (normals, flip, uvs) in [
+            (false, false, false),
+            (true, false, false),
+            (true, true, false),
+            (false, true, false),
+            (false, false, true),
+            (true, false, true),
+            (true, true, true),
+            (false, true, true),
+        ] {
+            let base = random_mesh(&mut rng, normals, flip);
+            let nv = base.positions.len();
+            let uvs = uvs.then(|| {
+                let mut uv: Vec<Vec2> = (0..nv)
+                    .map(|_| Vec2::new(rng.random_range(-2.0..2.0), rng.random_range(-2.0..2.0)))
+                    .collect();
+                uv[13] = uv[12]; // repeated: det = 0
+                uv[14] = uv[12] * 2.0 - uv[15]; // 12 halfway between 14 and 15: collinear
+                uv[16] = Vec2::new(f32::INFINITY, 0.5); // det not finite
+                uv
+            });
+            let mut tris = base.triangles.clone();
+            tris.extend([[12, 13, 20], [12, 14, 15], [16, 21, 22], [23, 24, 25]]);
+            let mesh = Mesh::new(base.positions, base.normals, uvs, tris, flip);
+            let nt = mesh.triangles.len() as u32;
+            let hits: Vec<HitCase> = (0..16 * 256)
+                .map(|k| {
+                    let active = rng.random_range(0..5) != 0;
+                    let tri = if active {
+                        // the uv edge triangles often
+                        match rng.random_range(0..4) {
+                            0 => nt - 1 - rng.random_range(0..4),
+                            _ => rng.random_range(0..nt),
+                        }
+                    } else {
+                        u32::MAX - rng.random_range(0..4)
+                    };
+                    let (b1, b2) = match k % 4 {
+                        0 => (
+                            edges[k / 4 % 5],
+                            edges[k / 20 % 5] * (1.0 - edges[k / 4 % 5]),
+                        ),
+                        _ => {
+                            let (u, v) = (rng.random::<f32>(), rng.random::<f32>());
+                            if u + v > 1.0 {
+                                (1.0 - u, 1.0 - v)
+                            } else {
+                                (u, v)
+                            }
+                        }
+                    };
+                    (tri, rng.random_range(0.0..100.0), b1, b2, active)
+                })
+                .collect();
+            let want: Vec<Option<SurfaceInteraction>> = hits
+                .iter()
+                .map(|&(tri, t, b1, b2, a)| {
+                    a.then(|| interaction_reference(&mesh, tri as usize, t, b1, b2))
+                })
+                .collect();
+            for b in crate::simd::Backend::ALL
+                .into_iter()
+                .filter(|b| b.supported())
+            {
+                let got = crate::simd::dispatch(
+                    b,
+                    Interactions {
+                        mesh: &mesh,
+                        hits: &hits,
+                    },
+                )
+                .expect("supported");
+                for (k, (g, w)) in got.iter().zip(&want).enumerate() {
+                    assert_eq!(
+                        g.as_ref().map(interaction_bits),
+                        w.as_ref().map(interaction_bits),
+                        "{b}, normals {normals}, flip {flip}, uvs {}: hit {:?}",
+                        mesh.uvs.is_some(),
+                        hits[k]
+                    );
+                }
+            }
+            // the public scalar function is the width-1 instance
+            for (&(tri, t, b1, b2, _), w) in hits.iter().zip(&want) {
+                if let Some(w) = w {
+                    let g = mesh.interaction(tri as usize, t, b1, b2, 5);
+                    assert_eq!(interaction_bits(&g), interaction_bits(w));
+                    let degenerate = mesh.uvs.is_some() && {
+                        let [i0, i1, i2] = mesh.triangles[tri as usize];
+                        let uv = mesh
+                            .uvs
+                            .as_ref()
+                            .map(|u| [u[i0 as usize], u[i1 as usize], u[i2 as usize]])
+                            .unwrap();
+                        let (d0, d1) = (uv[1] - uv[0], uv[2] - uv[0]);
+                        let det = d0.x * d1.y - d0.y * d1.x;
+                        !(det != 0.0 && det.is_finite())
+                    };
+                    checked[degenerate as usize] += 1;
+                }
+            }
+        }
+        assert!(checked[0] > 10000 && checked[1] > 500, "{checked:?}");
+    }
 }

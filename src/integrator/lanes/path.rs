@@ -3,24 +3,26 @@
 //!
 //! 1. refill: every free lane takes the next (pixel, sample) pair of the tile's queue, in
 //!    the scalar engine's order (pixel by pixel, samples ascending), and its camera ray;
-//! 2. intersect every active lane's ray;
+//! 2. intersect every active lane's ray, and compute the surface interactions at the hits:
+//!    on meshes outside instances by the lane kernel ([`crate::shape::Mesh::interaction_lanes`],
+//!    one pass per distinct mesh hit), elsewhere lane by lane;
 //! 3. at each hit, the emission and whether the path goes on ([`PathIntegrator::escape`],
 //!    [`PathIntegrator::at_surface`]);
 //! 4. at the lanes that go on, next-event estimation, BSDF sampling and Russian roulette
 //!    ([`PathIntegrator::scatter_lanes`], whose lane kernels run on all of them at once);
 //!
 //! and a lane whose path ended writes its result into the tile's slot for its sample.
-//! The path state lives in lanes ([`PathLanes`]); steps 2 and 3 are the scalar code called
-//! lane by lane on the state moved out of and back into the lanes.
+//! The path state lives in lanes ([`PathLanes`]); the traversal of step 2 and step 3 are
+//! the scalar code called lane by lane on the state moved out of and back into the lanes.
 
 use super::LaneStats;
+use crate::accel::Hit;
 use crate::geometry::Ray;
 use crate::integrator::path::{PathIntegrator, PathLanes, SurfaceStep};
 use crate::integrator::PathStats;
 use crate::material::ShadingBsdf;
 use crate::sampler::SampleStream;
 use crate::scene::Scene;
-use crate::accel::Hit;
 use crate::shape::{ShapeGeometry, SurfaceInteractions};
 use crate::simd::MAX_WIDTH;
 use crate::simd::{
@@ -204,7 +206,9 @@ fn trace_queue<L: Lanes>(
                 continue;
             };
             match scene.accel.mesh_triangle(hit) {
-                Some((s, k)) if matches!(scene.shapes[s as usize].geometry, ShapeGeometry::Mesh(_)) => {
+                Some((s, k))
+                    if matches!(scene.shapes[s as usize].geometry, ShapeGeometry::Mesh(_)) =>
+                {
                     on_mesh |= 1 << i;
                     shape.set_lane(i, s);
                     tri.set_lane(i, k);
@@ -215,12 +219,18 @@ fn trace_queue<L: Lanes>(
                 _ => sis.set_lane(i, &scene.accel.interaction(hit, &ray, &scene.shapes)),
             }
         }
-        for_each_distinct(l, shape, l.mask(on_mesh), #[inline(always)] |s, ms| {
-            if let ShapeGeometry::Mesh(mesh) = &scene.shapes[s as usize].geometry {
-                let r = mesh.interaction_lanes(l, ms, tri, t, b1, b2, s);
-                sis = SurfaceInteractions::select(ms, &r, &sis);
-            }
-        });
+        for_each_distinct(
+            l,
+            shape,
+            l.mask(on_mesh),
+            #[inline(always)]
+            |s, ms| {
+                if let ShapeGeometry::Mesh(mesh) = &scene.shapes[s as usize].geometry {
+                    let r = mesh.interaction_lanes(l, ms, tri, t, b1, b2, s);
+                    sis = SurfaceInteractions::select(ms, &r, &sis);
+                }
+            },
+        );
 
         // 3. Emission where the rays ended; which paths go on.
         let mut scatter = 0u32;
