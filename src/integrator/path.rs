@@ -69,7 +69,7 @@ impl PathIntegrator {
                 self.escape(scene, &mut st);
                 break;
             };
-            match self.at_surface(scene, &mut st, &si) {
+            match self.at_surface(scene, &mut st, si.shape, || si) {
                 SurfaceStep::End => break,
                 SurfaceStep::Trace => continue,
                 SurfaceStep::Scatter { wi_world } => {
@@ -120,19 +120,22 @@ impl PathIntegrator {
         }
     }
 
-    /// The state's ray hit `si`: its emission (MIS-weighted against emitter sampling), and
-    /// whether the path goes on.
+    /// The state's ray hit shape `shape` at the interaction `si()`: its emission
+    /// (MIS-weighted against emitter sampling), and whether the path goes on. `si` is
+    /// called only where the shape emits (the lane engine then moves the interaction out
+    /// of the lanes).
     #[inline(always)]
     pub fn at_surface(
         &self,
         scene: &Scene,
         st: &mut PathState,
-        si: &SurfaceInteraction,
+        shape: u32,
+        si: impl FnOnce() -> SurfaceInteraction,
     ) -> SurfaceStep {
         let d = Vec3::from(st.ray.d);
         let wi_world = -d.normalize();
-        let shape = &scene.shapes[si.shape as usize];
-        if let Some(e) = shape.emitter {
+        if let Some(e) = scene.shapes[shape as usize].emitter {
+            let si = &si();
             if st.depth == 0 && self.hide_emitters {
                 // Camera rays pass through directly visible emitters.
                 st.ray = Scene::spawn_ray(si, d).into();

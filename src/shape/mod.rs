@@ -11,7 +11,7 @@ pub mod sphere;
 
 pub use cylinder::Cylinder;
 pub use disk::Disk;
-pub use mesh::{Mesh, UvGrid};
+pub use mesh::{triangle_interactions, Mesh, TriangleLanes, UvGrid};
 pub use sdfgrid::SdfGrid;
 pub use sphere::Sphere;
 

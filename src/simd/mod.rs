@@ -335,26 +335,6 @@ pub fn gather_vec3<L: Lanes>(l: L, table: &[glam::Vec3], idx: L::U32, m: L::M) -
     out
 }
 
-/// `table[idx]` of a table of 2-vectors (texture coordinates), lane by lane where `m` is
-/// set, else zero.
-#[inline(always)]
-pub fn gather_vec2<L: Lanes>(l: L, table: &[glam::Vec2], idx: L::U32, m: L::M) -> [L::F; 2] {
-    let mut out = [l.splat(0.0); 2];
-    if L::WIDTH == 1 {
-        if m.any() {
-            let v = table[idx.lane(0) as usize];
-            out[0].set_lane(0, v.x);
-            out[1].set_lane(0, v.y);
-        }
-        return out;
-    }
-    let flat: &[f32] = bytemuck::cast_slice(table);
-    let base = idx.wrapping_mul(l.splat_u32(2));
-    out[0] = l.gather(flat, base, m);
-    out[1] = l.gather(flat, base.wrapping_add(l.splat_u32(1)), m);
-    out
-}
-
 /// `table[idx]` of a table of index triples, lane by lane where `m` is set, else zeros.
 #[inline(always)]
 pub fn gather_u32x3<L: Lanes>(l: L, table: &[[u32; 3]], idx: L::U32, m: L::M) -> [L::U32; 3] {

@@ -4,8 +4,9 @@
 //! 1. refill: every free lane takes the next (pixel, sample) pair of the tile's queue, in
 //!    the scalar engine's order (pixel by pixel, samples ascending), and its camera ray;
 //! 2. intersect every active lane's ray, and compute the surface interactions at the hits:
-//!    on meshes outside instances by the lane kernel ([`crate::shape::Mesh::interaction_lanes`],
-//!    one pass per distinct mesh hit), elsewhere lane by lane;
+//!    on meshes outside instances by the lane kernel ([`triangle_interactions`], once for
+//!    every mesh hit, each lane's triangle loaded from its own mesh), elsewhere lane by
+//!    lane;
 //! 3. at each hit, the emission and whether the path goes on ([`PathIntegrator::escape`],
 //!    [`PathIntegrator::at_surface`]);
 //! 4. at the lanes that go on, next-event estimation, BSDF sampling and Russian roulette
@@ -23,11 +24,9 @@ use crate::integrator::PathStats;
 use crate::material::ShadingBsdf;
 use crate::sampler::SampleStream;
 use crate::scene::Scene;
-use crate::shape::{ShapeGeometry, SurfaceInteractions};
+use crate::shape::{triangle_interactions, ShapeGeometry, SurfaceInteractions, TriangleLanes};
 use crate::simd::MAX_WIDTH;
-use crate::simd::{
-    dispatch, for_each_distinct, Backend, LaneF32, LaneMask, LaneProgram, LaneU32, Lanes, V3,
-};
+use crate::simd::{dispatch, Backend, LaneF32, LaneMask, LaneProgram, LaneU32, Lanes, V3};
 use crate::spectrum::Spectrum;
 use glam::Vec2;
 
@@ -192,10 +191,11 @@ fn trace_queue<L: Lanes>(
             counters.by_depth[d] += 1;
         }
 
-        // 2. Intersect, and the interactions at the hits: on meshes by the lane kernel, one
-        // pass per mesh hit; elsewhere (analytic shapes, instances) lane by lane.
+        // 2. Intersect, and the interactions at the hits: on meshes outside instances by
+        // the lane kernel, once for all of them (each lane's triangle loaded from its own
+        // mesh); elsewhere (analytic shapes, instances) lane by lane.
         let zero = l.splat(0.0);
-        let (mut tri, mut shape) = (l.splat_u32(0), l.splat_u32(0));
+        let mut tl = TriangleLanes::zero(l);
         let (mut t, mut b1, mut b2) = (zero, zero, zero);
         let mut on_mesh = 0u32;
         for i in lanes_of(active) {
@@ -205,32 +205,22 @@ fn trace_queue<L: Lanes>(
             let Some(hit) = &hits[i] else {
                 continue;
             };
-            match scene.accel.mesh_triangle(hit) {
-                Some((s, k))
-                    if matches!(scene.shapes[s as usize].geometry, ShapeGeometry::Mesh(_)) =>
-                {
+            if let Some((s, k)) = scene.accel.mesh_triangle(hit) {
+                if let ShapeGeometry::Mesh(mesh) = &scene.shapes[s as usize].geometry {
+                    mesh.load_triangle(&mut tl, i, k, s);
                     on_mesh |= 1 << i;
-                    shape.set_lane(i, s);
-                    tri.set_lane(i, k);
                     t.set_lane(i, hit.t);
                     b1.set_lane(i, hit.b1);
                     b2.set_lane(i, hit.b2);
+                    continue;
                 }
-                _ => sis.set_lane(i, &scene.accel.interaction(hit, &ray, &scene.shapes)),
             }
+            sis.set_lane(i, &scene.accel.interaction(hit, &ray, &scene.shapes));
         }
-        for_each_distinct(
-            l,
-            shape,
-            l.mask(on_mesh),
-            #[inline(always)]
-            |s, ms| {
-                if let ShapeGeometry::Mesh(mesh) = &scene.shapes[s as usize].geometry {
-                    let r = mesh.interaction_lanes(l, ms, tri, t, b1, b2, s);
-                    sis = SurfaceInteractions::select(ms, &r, &sis);
-                }
-            },
-        );
+        if on_mesh != 0 {
+            let r = triangle_interactions(l, &tl, t, b1, b2);
+            sis = SurfaceInteractions::select(l.mask(on_mesh), &r, &sis);
+        }
 
         // 3. Emission where the rays ended; which paths go on.
         let mut scatter = 0u32;
@@ -241,7 +231,8 @@ fn trace_queue<L: Lanes>(
                     path.escape(scene, &mut st);
                     p.finish(i, st.result.into(), out);
                 }
-                Some(_) => match path.at_surface(scene, &mut st, &sis.lane(i)) {
+                Some(_) => match path.at_surface(scene, &mut st, sis.shape.lane(i), || sis.lane(i))
+                {
                     SurfaceStep::End => p.finish(i, st.result.into(), out),
                     SurfaceStep::Trace => p.st.put(l, i, &st),
                     SurfaceStep::Scatter { wi_world } => {
