@@ -186,36 +186,18 @@ pub struct Frame {
 
 impl Frame {
     /// The branchless orthonormal basis of Duff et al. 2017, "Building an Orthonormal Basis,
-    /// Revisited" (JCGT 6(1)).
+    /// Revisited" (JCGT 6(1)). The width-1 instance of [`Frames::from_normal`].
     pub fn from_normal(n: Vec3) -> Self {
-        let sign = 1.0f32.copysign(n.z);
-        let a = -1.0 / (sign + n.z);
-        let b = n.x * n.y * a;
-        let s = Vec3::new(1.0 + sign * n.x * n.x * a, sign * b, -sign * n.x);
-        let t = Vec3::new(b, sign + n.y * n.y * a, -n.y);
-        Frame { s, t, n }
+        Frames::from_normal(Scalar, n.into()).into()
     }
 
     /// Mitsuba's shading frame (`SurfaceInteraction::initialize_sh_frame`): normal `n`, and
     /// the tangent `dp_du` made orthogonal to it (Gram–Schmidt), so that anisotropic BSDFs
     /// follow the surface's parameterisation. A zero `dp_du` falls back to
     /// [`Frame::from_normal`], as in Mitsuba; so does a `dp_du` parallel to `n` (Mitsuba gives
-    /// NaN there).
+    /// NaN there). The width-1 instance of [`Frames::from_normal_tangent`].
     pub fn from_normal_tangent(n: Vec3, dp_du: Vec3) -> Self {
-        let s = dp_du - n * n.dot(dp_du);
-        // Scale first, so that tiny or huge tangents (scenes scaled by 1e±20) normalise.
-        let m = s.abs().max_element();
-        if !(m > 0.0 && m.is_finite()) {
-            return Self::from_normal(n);
-        }
-        match (s / m).try_normalize() {
-            Some(s) => Frame {
-                s,
-                t: n.cross(s),
-                n,
-            },
-            None => Self::from_normal(n),
-        }
+        Frames::from_normal_tangent(Scalar, n.into(), dp_du.into()).into()
     }
 
     #[inline]
@@ -226,6 +208,118 @@ impl Frame {
     #[inline]
     pub fn to_world(&self, v: Vec3) -> Vec3 {
         self.s * v.x + self.t * v.y + self.n * v.z
+    }
+}
+
+/// Frames in lanes ([`Frame`] per lane).
+#[derive(Clone, Copy, Debug)]
+pub struct Frames<L: Lanes> {
+    pub s: V3<L::F>,
+    pub t: V3<L::F>,
+    pub n: V3<L::F>,
+}
+
+impl<L: Lanes> Frames<L> {
+    /// [`Frame::from_normal`] lane by lane: s = (1 + σ n_x² a, σ b, −σ n_x),
+    /// t = (b, σ + n_y² a, −n_y) with σ = ±1 the sign of n_z, a = −1 / (σ + n_z),
+    /// b = n_x n_y a.
+    #[inline(always)]
+    pub fn from_normal(l: L, n: V3<L::F>) -> Self {
+        let one = l.splat(1.0);
+        let sign = one.copysign(n.z);
+        let a = -one / (sign + n.z);
+        let b = n.x * n.y * a;
+        Frames {
+            s: V3::new(one + sign * n.x * n.x * a, sign * b, -sign * n.x),
+            t: V3::new(b, sign + n.y * n.y * a, -n.y),
+            n,
+        }
+    }
+
+    /// [`Frame::from_normal_tangent`] lane by lane: s = dp_du − n (n · dp_du), scaled by
+    /// its largest |component| and normalised (glam's `try_normalize`), t = n × s; the
+    /// frame of [`Frames::from_normal`] where that fails.
+    #[inline(always)]
+    pub fn from_normal_tangent(l: L, n: V3<L::F>, dp_du: V3<L::F>) -> Self {
+        let zero = l.splat(0.0);
+        let s = dp_du - n * n.dot(dp_du);
+        // Scale first, so that tiny or huge tangents (scenes scaled by 1e±20) normalise.
+        let m = s.abs().max_element();
+        let scaled = m.cmp_gt(zero) & m.is_finite();
+        let s = s / m;
+        let rcp = l.splat(1.0) / s.length();
+        let ok = scaled & rcp.is_finite() & rcp.cmp_gt(zero);
+        let s = s * rcp;
+        let frame = Frames {
+            s,
+            t: n.cross(s),
+            n,
+        };
+        let fallback = !ok;
+        if !fallback.any() {
+            return frame;
+        }
+        Frames::select(fallback, &Frames::from_normal(l, n), &frame)
+    }
+
+    /// `if m { a } else { b }` lane by lane.
+    #[inline(always)]
+    pub fn select(m: L::M, a: &Self, b: &Self) -> Self {
+        Frames {
+            s: V3::select(m, a.s, b.s),
+            t: V3::select(m, a.t, b.t),
+            n: V3::select(m, a.n, b.n),
+        }
+    }
+
+    /// [`Frame::to_local`] lane by lane: (v · s, v · t, v · n).
+    #[inline(always)]
+    pub fn to_local(&self, v: V3<L::F>) -> V3<L::F> {
+        V3::new(v.dot(self.s), v.dot(self.t), v.dot(self.n))
+    }
+
+    /// [`Frame::to_world`] lane by lane: (s v_x + t v_y) + n v_z.
+    #[inline(always)]
+    pub fn to_world(&self, v: V3<L::F>) -> V3<L::F> {
+        self.s * v.x + self.t * v.y + self.n * v.z
+    }
+
+    #[inline(always)]
+    pub fn lane(&self, i: usize) -> Frame {
+        Frame {
+            s: self.s.lane(i),
+            t: self.t.lane(i),
+            n: self.n.lane(i),
+        }
+    }
+
+    #[inline(always)]
+    pub fn set_lane(&mut self, i: usize, f: &Frame) {
+        self.s.set_lane(i, f.s);
+        self.t.set_lane(i, f.t);
+        self.n.set_lane(i, f.n);
+    }
+}
+
+impl From<Frame> for Frames<Scalar> {
+    #[inline(always)]
+    fn from(f: Frame) -> Self {
+        Frames {
+            s: f.s.into(),
+            t: f.t.into(),
+            n: f.n.into(),
+        }
+    }
+}
+
+impl From<Frames<Scalar>> for Frame {
+    #[inline(always)]
+    fn from(f: Frames<Scalar>) -> Self {
+        Frame {
+            s: f.s.into(),
+            t: f.t.into(),
+            n: f.n.into(),
+        }
     }
 }
 
@@ -425,5 +519,154 @@ mod tests {
             moved(1.0),
             moved(-1.0)
         );
+    }
+
+    /// `Frame::from_normal` as it was before the lane kernel (issue 42, step 3b).
+    fn from_normal_reference(n: Vec3) -> Frame {
+        let sign = 1.0f32.copysign(n.z);
+        let a = -1.0 / (sign + n.z);
+        let b = n.x * n.y * a;
+        let s = Vec3::new(1.0 + sign * n.x * n.x * a, sign * b, -sign * n.x);
+        let t = Vec3::new(b, sign + n.y * n.y * a, -n.y);
+        Frame { s, t, n }
+    }
+
+    /// `Frame::from_normal_tangent` as it was before the lane kernel (issue 42, step 3b):
+    /// the oracle of [`Frames::from_normal_tangent`].
+    fn from_normal_tangent_reference(n: Vec3, dp_du: Vec3) -> Frame {
+        let s = dp_du - n * n.dot(dp_du);
+        let m = s.abs().max_element();
+        if !(m > 0.0 && m.is_finite()) {
+            return from_normal_reference(n);
+        }
+        match (s / m).try_normalize() {
+            Some(s) => Frame {
+                s,
+                t: n.cross(s),
+                n,
+            },
+            None => from_normal_reference(n),
+        }
+    }
+
+    /// Random (normal, tangent) pairs with the edges of the shading frame: zero, tiny
+    /// (1e-30) and huge (1e30) tangents, tangents parallel to the normal, infinite and NaN
+    /// components, normals along ±z (the branch point of `from_normal`), ±0.
+    fn frame_cases() -> Vec<[Vec3; 2]> {
+        use rand::{RngExt, SeedableRng};
+        let mut rng = rand_pcg::Pcg32::seed_from_u64(0xf4a3e5);
+        let unit = |rng: &mut rand_pcg::Pcg32| {
+            Vec3::new(
+                rng.random_range(-1.0f32..1.0),
+                rng.random_range(-1.0f32..1.0),
+                rng.random_range(-1.0f32..1.0),
+            )
+            .normalize_or_zero()
+        };
+        let special = [
+            Vec3::Z,
+            -Vec3::Z,
+            Vec3::new(0.0, -0.0, -0.0),
+            Vec3::new(-0.0, 0.0, 1.0),
+            Vec3::new(1e-8, 0.0, -1.0).normalize(),
+            Vec3::X,
+        ];
+        (0..16 * 2048)
+            .map(|_| {
+                let n = match rng.random_range(0..4) {
+                    0 => special[rng.random_range(0..special.len())],
+                    _ => unit(&mut rng),
+                };
+                let t = unit(&mut rng) * rng.random_range(0.1f32..10.0);
+                let dp_du = match rng.random_range(0..12) {
+                    0 => Vec3::ZERO,
+                    1 => t * 1e-30,
+                    2 => t * 1e30,
+                    3 => n * rng.random_range(-3.0f32..3.0),
+                    4 => Vec3::new(f32::INFINITY, t.y, t.z),
+                    5 => Vec3::new(t.x, f32::NAN, t.z),
+                    6 => Vec3::new(1e-42, -1e-42, 0.0),
+                    7 => n + t * 1e-7,
+                    _ => t,
+                };
+                [n, dp_du]
+            })
+            .collect()
+    }
+
+    struct FrameProgram<'a>(&'a [[Vec3; 2]]);
+
+    impl crate::simd::LaneProgram for FrameProgram<'_> {
+        type Output = Vec<[Frame; 2]>;
+        #[inline(always)]
+        fn run<L: Lanes>(self, l: L) -> Vec<[Frame; 2]> {
+            let mut out = Vec::with_capacity(self.0.len());
+            for chunk in self.0.chunks(L::WIDTH) {
+                let mut v = [V3::splat(l.splat(0.0)); 2];
+                for (i, c) in chunk.iter().enumerate() {
+                    v[0].set_lane(i, c[0]);
+                    v[1].set_lane(i, c[1]);
+                }
+                let f = Frames::from_normal_tangent(l, v[0], v[1]);
+                let g = Frames::from_normal(l, v[0]);
+                out.extend((0..chunk.len()).map(|i| [f.lane(i), g.lane(i)]));
+            }
+            out
+        }
+    }
+
+    /// The shading frames in lanes against the scalar code of before, lane by lane, on
+    /// every backend this processor runs; the public scalar functions are the width-1
+    /// instances.
+    #[test]
+    fn frames_in_lanes_match_the_scalar_code_bit_for_bit() {
+        let cases = frame_cases();
+        let want: Vec<[Frame; 2]> = cases
+            .iter()
+            .map(|c| {
+                [
+                    from_normal_tangent_reference(c[0], c[1]),
+                    from_normal_reference(c[0]),
+                ]
+            })
+            .collect();
+        let bits = |f: &[Frame; 2]| {
+            f.iter()
+                .flat_map(|f| [f.s, f.t, f.n])
+                .flat_map(|v| v.to_array())
+                .map(|x| if x.is_nan() { u32::MAX } else { x.to_bits() })
+                .collect::<Vec<u32>>()
+        };
+        let mut backends = 0;
+        for b in crate::simd::Backend::ALL
+            .into_iter()
+            .filter(|b| b.supported())
+        {
+            backends += 1;
+            let got = crate::simd::dispatch(b, FrameProgram(&cases)).expect("supported");
+            for (k, (g, w)) in got.iter().zip(&want).enumerate() {
+                assert_eq!(bits(g), bits(w), "{b}: case {k} {:?}", cases[k]);
+            }
+        }
+        assert!(backends >= 2);
+        for (c, w) in cases.iter().zip(&want) {
+            let g = [
+                Frame::from_normal_tangent(c[0], c[1]),
+                Frame::from_normal(c[0]),
+            ];
+            assert_eq!(bits(&g), bits(w), "{c:?}");
+        }
+        // the cases reach both ways: the tangent followed, and the fallback taken
+        let fallback = cases
+            .iter()
+            .zip(&want)
+            .filter(|(c, w)| w[0].s == w[1].s && c[1] != Vec3::ZERO)
+            .count();
+        let followed = cases
+            .iter()
+            .zip(&want)
+            .filter(|(_, w)| w[0].s != w[1].s && w[0].s.is_finite())
+            .count();
+        assert!(fallback > 1000 && followed > 10000, "{fallback} {followed}");
     }
 }

@@ -167,6 +167,21 @@ fn emitter_kernels_on_every_kind_of_light() {
     }
 }
 
+/// The surface-interaction kernel (step 3b) and its lane-by-lane fallbacks: meshes with
+/// and without vertex normals and texture coordinates, flip_normals, meshes inside
+/// instances (one mirrored), analytic shapes, a material varying over the surface and an
+/// anisotropic one (the shading frame's tangent).
+#[test]
+fn surface_interactions_on_every_kind_of_hit() {
+    let job = load(
+        "tests/data/lanes-interactions.xml",
+        &[("res", "20")],
+        |_| {},
+    );
+    assert!(lit(&job));
+    check("lanes-interactions", &job, 4, None);
+}
+
 #[test]
 fn crop_window_with_sample_border() {
     let job = load("scenes/sample-border.xml", &[], |_| {});

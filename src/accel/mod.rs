@@ -890,6 +890,19 @@ impl Accel {
         self.run(ray, shapes, true).is_some()
     }
 
+    /// The mesh and triangle of a hit outside any instance (`None` for analytic shapes and
+    /// instances): what the lane engine's mesh interaction kernel takes.
+    #[inline]
+    pub fn mesh_triangle(&self, hit: &Hit) -> Option<(u32, u32)> {
+        if hit.instance != NO_INSTANCE {
+            return None;
+        }
+        match self.prims[hit.prim as usize] {
+            Primitive::Triangle { shape, index } => Some((shape, index)),
+            _ => None,
+        }
+    }
+
     /// The surface interaction of a hit found by [`Accel::intersect`] on `ray`.
     pub fn interaction(&self, hit: &Hit, ray: &Ray, shapes: &[Shape]) -> SurfaceInteraction {
         if hit.instance != NO_INSTANCE {

@@ -13,7 +13,7 @@ use crate::material::ShadingBsdf;
 use crate::sampler::SampleStream;
 use crate::sampling::{mis_power, mis_power_lanes};
 use crate::scene::Scene;
-use crate::shape::{SurfaceInteraction, SurfaceLanes};
+use crate::shape::{SurfaceInteraction, SurfaceInteractions};
 use crate::simd::{for_each_lane, LaneF32, LaneMask, LaneU32, Lanes, Scalar, V3};
 use crate::spectrum::Spectrum;
 use glam::Vec3;
@@ -69,7 +69,7 @@ impl PathIntegrator {
                 self.escape(scene, &mut st);
                 break;
             };
-            match self.at_surface(scene, &mut st, &si) {
+            match self.at_surface(scene, &mut st, si.shape, || si) {
                 SurfaceStep::End => break,
                 SurfaceStep::Trace => continue,
                 SurfaceStep::Scatter { wi_world } => {
@@ -120,19 +120,22 @@ impl PathIntegrator {
         }
     }
 
-    /// The state's ray hit `si`: its emission (MIS-weighted against emitter sampling), and
-    /// whether the path goes on.
+    /// The state's ray hit shape `shape` at the interaction `si()`: its emission
+    /// (MIS-weighted against emitter sampling), and whether the path goes on. `si` is
+    /// called only where the shape emits (the lane engine then moves the interaction out
+    /// of the lanes).
     #[inline(always)]
     pub fn at_surface(
         &self,
         scene: &Scene,
         st: &mut PathState,
-        si: &SurfaceInteraction,
+        shape: u32,
+        si: impl FnOnce() -> SurfaceInteraction,
     ) -> SurfaceStep {
         let d = Vec3::from(st.ray.d);
         let wi_world = -d.normalize();
-        let shape = &scene.shapes[si.shape as usize];
-        if let Some(e) = shape.emitter {
+        if let Some(e) = scene.shapes[shape as usize].emitter {
+            let si = &si();
             if st.depth == 0 && self.hide_emitters {
                 // Camera rays pass through directly visible emitters.
                 st.ray = Scene::spawn_ray(si, d).into();
@@ -180,8 +183,8 @@ impl PathIntegrator {
             scene,
             st,
             true,
-            |_| si,
-            &SurfaceLanes::from(si),
+            |_| *si,
+            &SurfaceInteractions::from(si),
             wi_world.into(),
             std::slice::from_mut(sampler),
             stats,
@@ -189,32 +192,34 @@ impl PathIntegrator {
         )
     }
 
-    /// The vertices of the lanes of `m` (surface interactions `si(i)`, in lanes `geo`, the
-    /// directions towards the previous vertices `wi_world`): next-event estimation, BSDF
-    /// sampling of the next rays and Russian roulette, each lane drawing from its own
-    /// `samplers[i]` in the scalar order (emitter sample, BSDF sample, roulette). `bufs[i]`
-    /// holds lane i's BSDF where its material varies. Returns the lanes whose path goes on.
+    /// The vertices of the lanes of `m` (surface interactions `sis`, the directions towards
+    /// the previous vertices `wi_world`): next-event estimation, BSDF sampling of the next
+    /// rays and Russian roulette, each lane drawing from its own `samplers[i]` in the scalar
+    /// order (emitter sample, BSDF sample, roulette). Where lane i's material varies over
+    /// the surface, its BSDF is filled into `bufs[i]` from `si(i)`, lane i's interaction.
+    /// Returns the lanes whose path goes on.
     ///
     /// Ported to lane kernels: emitter sampling (pick, point, solid-angle density), the
-    /// shadow rays, the ray-origin offsets, MIS and the roulette's arithmetic. Still lane by
+    /// shadow rays, the ray-origin offsets, MIS, the roulette's arithmetic, and the
+    /// directions' changes of frame (world to the shading frame and back). Still lane by
     /// lane: the BSDFs (eval, pdf, sample), the shadow rays' traversal, the sample draws.
     #[allow(clippy::too_many_arguments)]
     #[inline(always)]
-    pub fn scatter_lanes<'a, L: Lanes>(
+    pub fn scatter_lanes<L: Lanes>(
         &self,
         l: L,
         scene: &Scene,
         st: &mut PathLanes<L>,
         m: L::M,
-        si: impl Fn(usize) -> &'a SurfaceInteraction,
-        geo: &SurfaceLanes<L>,
+        si: impl Fn(usize) -> SurfaceInteraction,
+        sis: &SurfaceInteractions<L>,
         wi_world: V3<L::F>,
         samplers: &mut [SampleStream],
         stats: &mut PathStats,
         bufs: &mut [ShadingBsdf],
     ) -> L::M {
         let zero = l.splat(0.0);
-        let mut wi = V3::splat(zero);
+        let wi = sis.frame.to_local(wi_world);
         let (mut u0, mut u1) = (zero, zero);
         let mut smooth = 0u32;
         for_each_lane(
@@ -223,10 +228,12 @@ impl PathIntegrator {
             #[inline(always)]
             |i| {
                 stats.bounces += 1;
-                let s = si(i);
-                let bsdf = scene.bsdf_at(s, &mut bufs[i]);
-                let w = s.frame.to_local(wi_world.lane(i));
-                wi.set_lane(i, w);
+                let shape = sis.shape.lane(i);
+                if scene.uniform_bsdf(shape).is_none() {
+                    scene.shading_bsdf_into(&si(i), &mut bufs[i]);
+                }
+                let bsdf = lane_bsdf(scene, shape, &bufs[i]);
+                let w = wi.lane(i);
                 let u = samplers[i].next_2d();
                 u0.set_lane(i, u.x);
                 u1.set_lane(i, u.y);
@@ -235,19 +242,8 @@ impl PathIntegrator {
                 }
             },
         );
-        self.next_event_lanes(
-            l,
-            scene,
-            st,
-            l.mask(smooth),
-            &si,
-            geo,
-            wi,
-            (u0, u1),
-            stats,
-            bufs,
-        );
-        let go = self.sample_bsdf_lanes(l, scene, st, m, &si, geo, wi, samplers, bufs);
+        self.next_event_lanes(l, scene, st, l.mask(smooth), sis, wi, (u0, u1), stats, bufs);
+        let go = self.sample_bsdf_lanes(l, scene, st, m, sis, wi, samplers, bufs);
         self.roulette_lanes(l, st, go, samplers, stats)
     }
 
@@ -255,14 +251,13 @@ impl PathIntegrator {
     /// emitter sample each (`u`), MIS-weighted against BSDF sampling, added to the result.
     #[allow(clippy::too_many_arguments)]
     #[inline(always)]
-    fn next_event_lanes<'a, L: Lanes>(
+    fn next_event_lanes<L: Lanes>(
         &self,
         l: L,
         scene: &Scene,
         st: &mut PathLanes<L>,
         m: L::M,
-        si: &impl Fn(usize) -> &'a SurfaceInteraction,
-        geo: &SurfaceLanes<L>,
+        sis: &SurfaceInteractions<L>,
         wi: V3<L::F>,
         u: (L::F, L::F),
         stats: &mut PathStats,
@@ -271,24 +266,21 @@ impl PathIntegrator {
         if !m.any() {
             return;
         }
-        let (sampled, ds) = scene.sample_emitter_direction_lanes(l, m, geo.p, u);
+        let (sampled, ds) = scene.sample_emitter_direction_lanes(l, m, sis.p, u);
         let zero = l.splat(0.0);
+        let wo = sis.frame.to_local(ds.d);
         let mut f = V3::splat(zero);
-        let mut wo = V3::splat(zero);
         let mut lit = 0u32;
         for_each_lane(
             L::WIDTH,
             sampled,
             #[inline(always)]
             |i| {
-                let s = si(i);
-                let bsdf = scene.bsdf_filled(s, &bufs[i]);
-                let wo_i = s.frame.to_local(ds.d.lane(i));
-                let f_i = bsdf.eval(wi.lane(i), wo_i);
+                let bsdf = lane_bsdf(scene, sis.shape.lane(i), &bufs[i]);
+                let f_i = bsdf.eval(wi.lane(i), wo.lane(i));
                 if f_i != Spectrum::ZERO {
                     lit |= 1 << i;
                     f.set_lane(i, f_i);
-                    wo.set_lane(i, wo_i);
                 }
             },
         );
@@ -296,7 +288,7 @@ impl PathIntegrator {
         if !lit.any() {
             return;
         }
-        let ray = Scene::shadow_ray_lanes(l, geo.p, geo.p_error, geo.ng, &ds);
+        let ray = Scene::shadow_ray_lanes(l, sis.p, sis.p_error, sis.ng, &ds);
         let delta = ds.delta.bits();
         let mut bsdf_pdf = zero;
         let mut visible = 0u32;
@@ -312,7 +304,7 @@ impl PathIntegrator {
                 visible |= 1 << i;
                 // Delta emitters cannot be found by BSDF sampling: no MIS, no BSDF density.
                 if delta >> i & 1 == 0 {
-                    let bsdf = scene.bsdf_filled(si(i), &bufs[i]);
+                    let bsdf = lane_bsdf(scene, sis.shape.lane(i), &bufs[i]);
                     bsdf_pdf.set_lane(i, bsdf.pdf(wi.lane(i), wo.lane(i)));
                 }
             },
@@ -330,20 +322,19 @@ impl PathIntegrator {
     /// surfaces), throughputs and MIS state. Returns the lanes whose BSDF gave a direction.
     #[allow(clippy::too_many_arguments)]
     #[inline(always)]
-    fn sample_bsdf_lanes<'a, L: Lanes>(
+    fn sample_bsdf_lanes<L: Lanes>(
         &self,
         l: L,
         scene: &Scene,
         st: &mut PathLanes<L>,
         m: L::M,
-        si: &impl Fn(usize) -> &'a SurfaceInteraction,
-        geo: &SurfaceLanes<L>,
+        sis: &SurfaceInteractions<L>,
         wi: V3<L::F>,
         samplers: &mut [SampleStream],
         bufs: &[ShadingBsdf],
     ) -> L::M {
         let zero = l.splat(0.0);
-        let mut wo_world = V3::splat(zero);
+        let mut wo = V3::splat(zero);
         let mut weight = V3::splat(zero);
         let (mut pdf, mut eta) = (zero, zero);
         let (mut delta, mut go) = (0u32, 0u32);
@@ -352,14 +343,13 @@ impl PathIntegrator {
             m,
             #[inline(always)]
             |i| {
-                let s = si(i);
-                let bsdf = scene.bsdf_filled(s, &bufs[i]);
+                let bsdf = lane_bsdf(scene, sis.shape.lane(i), &bufs[i]);
                 let sampler = &mut samplers[i];
                 let u1 = sampler.next_1d();
                 let u2 = sampler.next_2d();
                 if let Some(bs) = bsdf.sample(wi.lane(i), u1, u2) {
                     go |= 1 << i;
-                    wo_world.set_lane(i, s.frame.to_world(bs.wo));
+                    wo.set_lane(i, bs.wo);
                     weight.set_lane(i, bs.weight);
                     pdf.set_lane(i, bs.pdf);
                     eta.set_lane(i, bs.eta);
@@ -369,12 +359,13 @@ impl PathIntegrator {
         );
         let go = l.mask(go);
         if go.any() {
+            let wo_world = sis.frame.to_world(wo);
             st.throughput = V3::select(go, st.throughput * weight, st.throughput);
             st.eta = L::F::select(go, st.eta * eta, st.eta);
-            st.prev_p = V3::select(go, geo.p, st.prev_p);
+            st.prev_p = V3::select(go, sis.p, st.prev_p);
             st.prev_bsdf_pdf = L::F::select(go, pdf, st.prev_bsdf_pdf);
             st.prev_delta = (go & l.mask(delta)) | st.prev_delta.and_not(go);
-            let o = offset_ray_origin_lanes(l, geo.p, geo.p_error, geo.ng, wo_world);
+            let o = offset_ray_origin_lanes(l, sis.p, sis.p_error, sis.ng, wo_world);
             st.ray = Rays {
                 o: V3::select(go, o, st.ray.o),
                 d: V3::select(go, wo_world, st.ray.d),
@@ -420,6 +411,13 @@ impl PathIntegrator {
         st.throughput = V3::select(rr.and_not(ended), st.throughput / q, st.throughput);
         alive.and_not(ended)
     }
+}
+
+/// The BSDF of lane i at a hit on `shape`: the material's prebuilt one, else the lane's
+/// buffer, filled at the vertex's first step ([`Scene::bsdf_at`]'s rule).
+#[inline(always)]
+fn lane_bsdf<'a>(scene: &'a Scene, shape: u32, buf: &'a ShadingBsdf) -> &'a ShadingBsdf {
+    scene.uniform_bsdf(shape).unwrap_or(buf)
 }
 
 /// [`PathState`] in lanes: the paths of the lane engine (`integrator::lanes::path`), and at

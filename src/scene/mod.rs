@@ -304,20 +304,12 @@ impl Scene {
         buf
     }
 
-    /// The BSDF at `si` once [`Scene::bsdf_at`] has run with `buf`: the material's prebuilt
-    /// one, else `buf` as that call filled it (for the later steps of a vertex that run lane
-    /// by lane).
+    /// The material of shape `shape`'s prebuilt BSDF, where it does not vary over the
+    /// surface ([`Scene::bsdf_at`]).
     #[inline(always)]
-    pub fn bsdf_filled<'a>(
-        &'a self,
-        si: &SurfaceInteraction,
-        buf: &'a ShadingBsdf,
-    ) -> &'a ShadingBsdf {
-        let material = self.shapes[si.shape as usize].material as usize;
-        match self.uniform_bsdfs.get(material) {
-            Some(Some(bsdf)) => bsdf,
-            _ => buf,
-        }
+    pub fn uniform_bsdf(&self, shape: u32) -> Option<&ShadingBsdf> {
+        let material = self.shapes[shape as usize].material as usize;
+        self.uniform_bsdfs.get(material)?.as_ref()
     }
 
     /// The prebuilt BSDFs of [`Scene::bsdf_at`], one per material (`None` where it varies).
@@ -673,7 +665,7 @@ mod tests {
         fn run<L: Lanes>(self, l: L) -> Self::Output {
             let mut out = Vec::new();
             for chunk in self.cases.chunks(L::WIDTH) {
-                let mut geo = crate::shape::SurfaceLanes::zero(l);
+                let mut geo = crate::shape::SurfaceInteractions::zero(l);
                 let (mut u0, mut u1) = (l.splat(0.0), l.splat(0.0));
                 let mut bits = 0;
                 for (i, c) in chunk.iter().enumerate() {

@@ -2,10 +2,12 @@
 //! "Watertight Ray/Triangle Intersection" (JCGT 2(1)), with the conservative `t > 0` bound
 //! of pbrt-v4 §6.8.4 so that a ray leaving a triangle never re-hits it.
 
-use super::{PositionSample, PositionSamples, SurfaceInteraction};
-use crate::geometry::{gamma, Frame};
+use super::{PositionSample, PositionSamples, SurfaceInteraction, SurfaceInteractions};
+use crate::geometry::{gamma, Frames};
 use crate::sampling::{square_to_uniform_triangle_lanes, Distribution1D};
-use crate::simd::{for_each_lane, gather_u32x3, gather_vec3, LaneF32, LaneU32, Lanes, Scalar, V3};
+use crate::simd::{
+    for_each_lane, gather_u32x3, gather_vec3, LaneF32, LaneMask, LaneU32, Lanes, Scalar, V3,
+};
 use glam::{DVec3, Vec2, Vec3, Vec4};
 
 /// A world-space triangle mesh.
@@ -120,21 +122,6 @@ impl Mesh {
         }
     }
 
-    #[inline]
-    fn face_normal(&self, tri: usize) -> Vec3 {
-        self.face_normals[tri]
-    }
-
-    /// Shading normal at barycentrics (b0, b1, b2), or the face normal. The width-1 instance
-    /// of [`Mesh::shading_normal_lanes`].
-    fn shading_normal(&self, tri: usize, b: [f32; 3], ng: Vec3) -> Vec3 {
-        if self.normals.is_none() {
-            return ng;
-        }
-        self.shading_normal_lanes(Scalar, true, self.triangles[tri], b, ng.into())
-            .into()
-    }
-
     /// The shading normal lane by lane, at barycentrics `b` = (b0, b1, b2) of the triangles
     /// with vertices `v`: Σ bᵢ nᵢ normalised (glam's `normalize_or_zero`), flipped with
     /// `flip_normals`; the geometric normal `ng` where the mesh has no normals or the sum
@@ -158,7 +145,8 @@ impl Mesh {
         V3::select(n.cmp_eq(V3::splat(l.splat(0.0))), ng, n)
     }
 
-    /// The surface interaction at barycentrics (b1, b2) of triangle `tri`.
+    /// The surface interaction at barycentrics (b1, b2) of triangle `tri`. The width-1
+    /// instance of [`triangle_interactions`].
     pub fn interaction(
         &self,
         tri: usize,
@@ -167,49 +155,46 @@ impl Mesh {
         b2: f32,
         shape: u32,
     ) -> SurfaceInteraction {
-        let b0 = 1.0 - b1 - b2;
-        let [p0, p1, p2] = self.vertices(tri);
-        let (p, p_error) = barycentric_point([p0, p1, p2], [b0, b1, b2], 7);
-        let ng = self.face_normal(tri);
-        let ns = self.shading_normal(tri, [b0, b1, b2], ng);
-        // Mitsuba's parameterisation: barycentric without texture coordinates (dp/du = p1 −
-        // p0), else the texture coordinates, with an arbitrary basis around the geometric
-        // normal when the triangle's uv map is degenerate.
-        let (dp0, dp1) = (p1 - p0, p2 - p0);
-        let (uv, dp_du, dp_dv) = match &self.uvs {
-            Some(uvs) => {
-                let [i0, i1, i2] = self.triangles[tri].map(|i| uvs[i as usize]);
-                let uv = i0 * b0 + i1 * b1 + i2 * b2;
-                let (duv0, duv1) = (i1 - i0, i2 - i0);
-                let det = duv0.x * duv1.y - duv0.y * duv1.x;
-                if det != 0.0 && det.is_finite() {
-                    let inv = 1.0 / det;
-                    (
-                        uv,
-                        (dp0 * duv1.y - dp1 * duv0.y) * inv,
-                        (dp1 * duv0.x - dp0 * duv1.x) * inv,
-                    )
-                } else {
-                    // Around the normal before flip_normals, as Mitsuba flips last.
-                    let f = Frame::from_normal(if self.flip_normals { -ng } else { ng });
-                    (uv, f.s, f.t)
-                }
-            }
-            None => (Vec2::new(b1, b2), dp0, dp1),
-        };
-        SurfaceInteraction {
-            p,
-            p_error,
-            t,
-            ng,
-            frame: Frame::from_normal_tangent(ns, dp_du),
-            uv,
-            dp_du,
-            dp_dv,
-            shape,
-            prim: tri as u32,
-            bary: Vec2::new(b1, b2),
+        let mut tl = TriangleLanes::zero(Scalar);
+        self.load_triangle(&mut tl, 0, tri as u32, shape);
+        triangle_interactions(Scalar, &tl, t, b1, b2).into()
+    }
+
+    /// Loads triangle `tri` of this mesh (shape `shape`) into lane `i` of `tl`: its
+    /// vertices, vertex normals and texture coordinates where the mesh has them, its face
+    /// normal, and whether the mesh flips its normals.
+    #[inline(always)]
+    pub fn load_triangle<L: Lanes>(
+        &self,
+        tl: &mut TriangleLanes<L>,
+        i: usize,
+        tri: u32,
+        shape: u32,
+    ) {
+        let v = self.triangles[tri as usize];
+        for (p, &k) in tl.p.iter_mut().zip(&v) {
+            p.set_lane(i, self.positions[k as usize]);
         }
+        tl.ng.set_lane(i, self.face_normals[tri as usize]);
+        if let Some(normals) = &self.normals {
+            for (n, &k) in tl.n.iter_mut().zip(&v) {
+                n.set_lane(i, normals[k as usize]);
+            }
+            tl.normals |= 1 << i;
+        }
+        if let Some(uvs) = &self.uvs {
+            for (uv, &k) in tl.uv.iter_mut().zip(&v) {
+                let t = uvs[k as usize];
+                uv[0].set_lane(i, t.x);
+                uv[1].set_lane(i, t.y);
+            }
+            tl.uvs |= 1 << i;
+        }
+        if self.flip_normals {
+            tl.flip |= 1 << i;
+        }
+        tl.tri.set_lane(i, tri);
+        tl.shape.set_lane(i, shape);
     }
 
     /// Picks a triangle ∝ area, then a uniform point on it. The width-1 instance of
@@ -358,14 +343,8 @@ impl UvGrid {
     }
 }
 
-/// The point Σ bᵢ pᵢ and its conservative error bound γ(n) Σ |bᵢ pᵢ| (pbrt-v4 §6.8.2). The
-/// width-1 instance of [`barycentric_point_lanes`].
-fn barycentric_point(p: [Vec3; 3], b: [f32; 3], n: i32) -> (Vec3, Vec3) {
-    let (point, err) = barycentric_point_lanes(Scalar, p.map(V3::from), b, n);
-    (point.into(), err.into())
-}
-
-/// [`barycentric_point`] lane by lane: ((b₀p₀ + b₁p₁) + b₂p₂, γ(n) ((|b₀p₀| + |b₁p₁|) + |b₂p₂|)).
+/// The point Σ bᵢ pᵢ and its conservative error bound γ(n) Σ |bᵢ pᵢ| (pbrt-v4 §6.8.2), lane
+/// by lane: ((b₀p₀ + b₁p₁) + b₂p₂, γ(n) ((|b₀p₀| + |b₁p₁|) + |b₂p₂|)).
 #[inline(always)]
 pub fn barycentric_point_lanes<L: Lanes>(
     l: L,
@@ -377,6 +356,122 @@ pub fn barycentric_point_lanes<L: Lanes>(
     let point = q[0] + q[1] + q[2];
     let abs_sum = q[0].abs() + q[1].abs() + q[2].abs();
     (point, abs_sum * l.splat(gamma(n)))
+}
+
+/// Triangles hit, in lanes, each lane's from its own mesh ([`Mesh::load_triangle`]): what
+/// [`triangle_interactions`] computes the surface interactions from. The lane engine loads
+/// every lane that hit a mesh (outside instances), whatever the mesh, and runs the kernel
+/// once for all of them.
+#[derive(Clone, Copy, Debug)]
+pub struct TriangleLanes<L: Lanes> {
+    /// The vertices.
+    pub p: [V3<L::F>; 3],
+    /// The vertex normals (lanes of `normals`).
+    pub n: [V3<L::F>; 3],
+    /// The vertices' (u, v) (lanes of `uvs`).
+    pub uv: [[L::F; 2]; 3],
+    /// The face normal.
+    pub ng: V3<L::F>,
+    pub tri: L::U32,
+    pub shape: L::U32,
+    /// The lanes (bits) whose mesh has vertex normals, texture coordinates, flip_normals.
+    pub normals: u32,
+    pub uvs: u32,
+    pub flip: u32,
+}
+
+impl<L: Lanes> TriangleLanes<L> {
+    #[inline(always)]
+    pub fn zero(l: L) -> Self {
+        let z = l.splat(0.0);
+        let v = V3::splat(z);
+        TriangleLanes {
+            p: [v; 3],
+            n: [v; 3],
+            uv: [[z; 2]; 3],
+            ng: v,
+            tri: l.splat_u32(0),
+            shape: l.splat_u32(0),
+            normals: 0,
+            uvs: 0,
+            flip: 0,
+        }
+    }
+}
+
+/// [`Mesh::interaction`] lane by lane, at distances `t` and barycentrics (b1, b2) of the
+/// triangles `tl`: the point and its error bound, the face normal, the shading normal
+/// (Σ bᵢ nᵢ normalised, flipped with flip_normals; the face normal where the mesh has no
+/// normals or the sum is zero), and Mitsuba's parameterisation (barycentric without texture
+/// coordinates, dp/du = p1 − p0; else the texture coordinates, with an arbitrary basis
+/// around the unflipped face normal where the triangle's uv map is degenerate), the shading
+/// frame following dp/du. Lanes not loaded give values to be ignored.
+#[inline(always)]
+pub fn triangle_interactions<L: Lanes>(
+    l: L,
+    tl: &TriangleLanes<L>,
+    t: L::F,
+    b1: L::F,
+    b2: L::F,
+) -> SurfaceInteractions<L> {
+    let zero = l.splat(0.0);
+    let b0 = l.splat(1.0) - b1 - b2;
+    let [p0, p1, p2] = tl.p;
+    let (p, p_error) = barycentric_point_lanes(l, tl.p, [b0, b1, b2], 7);
+    let ng = tl.ng;
+    let flip = l.mask(tl.flip);
+    let ns = if tl.normals != 0 {
+        let [n0, n1, n2] = tl.n;
+        let n = n0 * b0 + n1 * b1 + n2 * b2;
+        let n = n.normalize_or_zero(l.splat(1.0), zero);
+        let n = V3::select(flip, -n, n);
+        let n = V3::select(n.cmp_eq(V3::splat(zero)), ng, n);
+        V3::select(l.mask(tl.normals), n, ng)
+    } else {
+        ng
+    };
+    let (dp0, dp1) = (p1 - p0, p2 - p0);
+    let (uv, dp_du, dp_dv) = if tl.uvs != 0 {
+        let has = l.mask(tl.uvs);
+        let [t0, t1, t2] = tl.uv;
+        let uv = [
+            t0[0] * b0 + t1[0] * b1 + t2[0] * b2,
+            t0[1] * b0 + t1[1] * b1 + t2[1] * b2,
+        ];
+        let duv0 = [t1[0] - t0[0], t1[1] - t0[1]];
+        let duv1 = [t2[0] - t0[0], t2[1] - t0[1]];
+        let det = duv0[0] * duv1[1] - duv0[1] * duv1[0];
+        let inv = l.splat(1.0) / det;
+        let mut dp_du = (dp0 * duv1[1] - dp1 * duv0[1]) * inv;
+        let mut dp_dv = (dp1 * duv0[0] - dp0 * duv1[0]) * inv;
+        let degenerate = has & !(det.cmp_ne(zero) & det.is_finite());
+        if degenerate.any() {
+            // Around the normal before flip_normals, as Mitsuba flips last.
+            let f = Frames::from_normal(l, V3::select(flip, -ng, ng));
+            dp_du = V3::select(degenerate, f.s, dp_du);
+            dp_dv = V3::select(degenerate, f.t, dp_dv);
+        }
+        (
+            [L::F::select(has, uv[0], b1), L::F::select(has, uv[1], b2)],
+            V3::select(has, dp_du, dp0),
+            V3::select(has, dp_dv, dp1),
+        )
+    } else {
+        ([b1, b2], dp0, dp1)
+    };
+    SurfaceInteractions {
+        p,
+        p_error,
+        t,
+        ng,
+        frame: Frames::from_normal_tangent(l, ns, dp_du),
+        uv,
+        dp_du,
+        dp_dv,
+        shape: tl.shape,
+        prim: tl.tri,
+        bary: [b1, b2],
+    }
 }
 
 /// Per-ray constants of the watertight test: the dominant axis `kz` of the direction, the
@@ -1041,5 +1136,242 @@ mod tests {
             }
         }
         assert!(checked > 10000, "{checked}");
+    }
+
+    /// `Mesh::interaction` as it was before the lane kernel (issue 42, step 3b): the oracle
+    /// of [`triangle_interactions`]. (Its shading frame is `Frame::from_normal_tangent`,
+    /// which `geometry`'s tests hold to the scalar code of before.)
+    fn interaction_reference(
+        m: &Mesh,
+        tri: usize,
+        t: f32,
+        b1: f32,
+        b2: f32,
+        shape: u32,
+    ) -> SurfaceInteraction {
+        use crate::geometry::Frame;
+        let b0 = 1.0 - b1 - b2;
+        let [p0, p1, p2] = m.vertices(tri);
+        let q = [p0 * b0, p1 * b1, p2 * b2];
+        let p = q[0] + q[1] + q[2];
+        let p_error = (q[0].abs() + q[1].abs() + q[2].abs()) * gamma(7);
+        let ng = m.face_normals[tri];
+        let ns = match &m.normals {
+            None => ng,
+            Some(normals) => {
+                let [i0, i1, i2] = m.triangles[tri];
+                let n = normals[i0 as usize] * b0
+                    + normals[i1 as usize] * b1
+                    + normals[i2 as usize] * b2;
+                let n = n.normalize_or_zero();
+                if n == Vec3::ZERO {
+                    ng
+                } else if m.flip_normals {
+                    -n
+                } else {
+                    n
+                }
+            }
+        };
+        let (dp0, dp1) = (p1 - p0, p2 - p0);
+        let (uv, dp_du, dp_dv) = match &m.uvs {
+            Some(uvs) => {
+                let [i0, i1, i2] = m.triangles[tri].map(|i| uvs[i as usize]);
+                let uv = i0 * b0 + i1 * b1 + i2 * b2;
+                let (duv0, duv1) = (i1 - i0, i2 - i0);
+                let det = duv0.x * duv1.y - duv0.y * duv1.x;
+                if det != 0.0 && det.is_finite() {
+                    let inv = 1.0 / det;
+                    (
+                        uv,
+                        (dp0 * duv1.y - dp1 * duv0.y) * inv,
+                        (dp1 * duv0.x - dp0 * duv1.x) * inv,
+                    )
+                } else {
+                    let f = Frame::from_normal(if m.flip_normals { -ng } else { ng });
+                    (uv, f.s, f.t)
+                }
+            }
+            None => (Vec2::new(b1, b2), dp0, dp1),
+        };
+        SurfaceInteraction {
+            p,
+            p_error,
+            t,
+            ng,
+            frame: Frame::from_normal_tangent(ns, dp_du),
+            uv,
+            dp_du,
+            dp_dv,
+            shape,
+            prim: tri as u32,
+            bary: Vec2::new(b1, b2),
+        }
+    }
+
+    /// Every field's bits (NaN as one value: a computed NaN's payload is not specified).
+    fn interaction_bits(si: &SurfaceInteraction) -> Vec<u32> {
+        let f = [si.p, si.p_error, si.ng, si.frame.s, si.frame.t, si.frame.n]
+            .into_iter()
+            .chain([si.dp_du, si.dp_dv])
+            .flat_map(|v| v.to_array())
+            .chain([si.t, si.uv.x, si.uv.y, si.bary.x, si.bary.y])
+            .map(|x| if x.is_nan() { u32::MAX } else { x.to_bits() });
+        f.chain([si.shape, si.prim]).collect()
+    }
+
+    /// A hit: mesh, triangle, t, b1, b2, and whether its lane is active.
+    type HitCase = (usize, u32, f32, f32, f32, bool);
+
+    struct Interactions<'a> {
+        meshes: &'a [Mesh],
+        hits: &'a [HitCase],
+    }
+
+    impl crate::simd::LaneProgram for Interactions<'_> {
+        type Output = Vec<Option<SurfaceInteraction>>;
+        #[inline(always)]
+        fn run<L: Lanes>(self, l: L) -> Self::Output {
+            let mut out = Vec::with_capacity(self.hits.len());
+            for chunk in self.hits.chunks(L::WIDTH) {
+                // as the lane engine: each active lane's triangle from its own mesh
+                let mut tl = TriangleLanes::zero(l);
+                let (mut t, mut b1, mut b2) = (l.splat(0.0), l.splat(0.0), l.splat(0.0));
+                for (i, &(mi, k, tk, u, v, a)) in chunk.iter().enumerate() {
+                    if a {
+                        self.meshes[mi].load_triangle(&mut tl, i, k, mi as u32);
+                        t.set_lane(i, tk);
+                        b1.set_lane(i, u);
+                        b2.set_lane(i, v);
+                    }
+                }
+                let r = triangle_interactions(l, &tl, t, b1, b2);
+                out.extend(
+                    chunk
+                        .iter()
+                        .enumerate()
+                        .map(|(i, h)| h.5.then(|| r.lane(i))),
+                );
+            }
+            out
+        }
+    }
+
+    /// The mesh interaction in lanes against the scalar code of before, lane by lane, on
+    /// every backend this processor runs, the lanes of a packet hitting different meshes:
+    /// with and without vertex normals and texture coordinates, either orientation,
+    /// zero-area triangles, vertex normals summing to zero, degenerate uv maps (repeated,
+    /// collinear and infinite texture coordinates), edge barycentrics, inactive lanes.
+    #[test]
+    fn interaction_in_lanes_matches_the_scalar_code_bit_for_bit() {
+        use rand::{RngExt, SeedableRng};
+        let mut rng = rand_pcg::Pcg32::seed_from_u64(0x3b1a7e);
+        let edges = [0.0, 1.0, 1e-30, 0.5, 1.0 - f32::EPSILON / 2.0];
+        let mut meshes = Vec::new();
+        for (normals, flip, uvs) in [
+            (false, false, false),
+            (true, false, false),
+            (true, true, false),
+            (false, true, false),
+            (false, false, true),
+            (true, false, true),
+            (true, true, true),
+            (false, true, true),
+        ] {
+            let base = random_mesh(&mut rng, normals, flip);
+            let nv = base.positions.len();
+            let uvs = uvs.then(|| {
+                let mut uv: Vec<Vec2> = (0..nv)
+                    .map(|_| Vec2::new(rng.random_range(-2.0..2.0), rng.random_range(-2.0..2.0)))
+                    .collect();
+                uv[13] = uv[12]; // repeated: det = 0
+                uv[14] = uv[12] * 2.0 - uv[15]; // 12 halfway between 14 and 15: collinear
+                uv[16] = Vec2::new(f32::INFINITY, 0.5); // det not finite
+                uv
+            });
+            let mut tris = base.triangles.clone();
+            tris.extend([[12, 13, 20], [12, 14, 15], [16, 21, 22], [23, 24, 25]]);
+            meshes.push(Mesh::new(base.positions, base.normals, uvs, tris, flip));
+        }
+        let hits: Vec<HitCase> = (0..16 * 2048)
+            .map(|k| {
+                // runs of lanes on one mesh, and packets mixing them
+                let mi = if k % 64 < 32 {
+                    k / 64 % meshes.len()
+                } else {
+                    rng.random_range(0..meshes.len())
+                };
+                let nt = meshes[mi].triangles.len() as u32;
+                // the uv edge triangles often
+                let tri = match rng.random_range(0..4) {
+                    0 => nt - 1 - rng.random_range(0..4),
+                    _ => rng.random_range(0..nt),
+                };
+                let (b1, b2) = match k % 4 {
+                    0 => (
+                        edges[k / 4 % 5],
+                        edges[k / 20 % 5] * (1.0 - edges[k / 4 % 5]),
+                    ),
+                    _ => {
+                        let (u, v) = (rng.random::<f32>(), rng.random::<f32>());
+                        if u + v > 1.0 {
+                            (1.0 - u, 1.0 - v)
+                        } else {
+                            (u, v)
+                        }
+                    }
+                };
+                let active = rng.random_range(0..5) != 0;
+                (mi, tri, rng.random_range(0.0..100.0), b1, b2, active)
+            })
+            .collect();
+        let want: Vec<Option<SurfaceInteraction>> = hits
+            .iter()
+            .map(|&(mi, tri, t, b1, b2, a)| {
+                a.then(|| interaction_reference(&meshes[mi], tri as usize, t, b1, b2, mi as u32))
+            })
+            .collect();
+        for b in crate::simd::Backend::ALL
+            .into_iter()
+            .filter(|b| b.supported())
+        {
+            let got = crate::simd::dispatch(
+                b,
+                Interactions {
+                    meshes: &meshes,
+                    hits: &hits,
+                },
+            )
+            .expect("supported");
+            for (k, (g, w)) in got.iter().zip(&want).enumerate() {
+                let m = &meshes[hits[k].0];
+                assert_eq!(
+                    g.as_ref().map(interaction_bits),
+                    w.as_ref().map(interaction_bits),
+                    "{b}, normals {}, flip {}, uvs {}: hit {:?}",
+                    m.normals.is_some(),
+                    m.flip_normals,
+                    m.uvs.is_some(),
+                    hits[k]
+                );
+            }
+        }
+        // the public scalar function is the width-1 instance; the cases reach the
+        // degenerate uv maps
+        let mut checked = [0usize; 2];
+        for (&(mi, tri, t, b1, b2, _), w) in hits.iter().zip(&want) {
+            let Some(w) = w else { continue };
+            let m = &meshes[mi];
+            let g = m.interaction(tri as usize, t, b1, b2, mi as u32);
+            assert_eq!(interaction_bits(&g), interaction_bits(w));
+            let degenerate = m.uvs.as_ref().is_some_and(|u| {
+                let uv = m.triangles[tri as usize].map(|i| u[i as usize]);
+                let (d0, d1) = (uv[1] - uv[0], uv[2] - uv[0]);
+                let det = d0.x * d1.y - d0.y * d1.x;
+                !(det != 0.0 && det.is_finite())
+            });
+            checked[degenerate as usize] += 1;
+        }
+        assert!(checked[0] > 10000 && checked[1] > 500, "{checked:?}");
     }
 }

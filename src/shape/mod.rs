@@ -11,12 +11,12 @@ pub mod sphere;
 
 pub use cylinder::Cylinder;
 pub use disk::Disk;
-pub use mesh::{Mesh, UvGrid};
+pub use mesh::{triangle_interactions, Mesh, TriangleLanes, UvGrid};
 pub use sdfgrid::SdfGrid;
 pub use sphere::Sphere;
 
-use crate::geometry::{Frame, Ray};
-use crate::simd::{LaneF32, Lanes, Scalar, V3};
+use crate::geometry::{Frame, Frames, Ray};
+use crate::simd::{LaneF32, LaneU32, Lanes, Scalar, V3};
 use glam::{Vec2, Vec3};
 
 /// A local geometry record at a ray hit (pbrt's `SurfaceInteraction`, Mitsuba's
@@ -102,23 +102,59 @@ impl From<PositionSamples<Scalar>> for PositionSample {
     }
 }
 
-/// What the lane kernels read of the surface interactions of the lanes: the point, its
-/// error bound and the geometric normal (offsets, emitter sampling, shadow rays).
+/// Surface interactions in lanes ([`SurfaceInteraction`] per lane).
 #[derive(Clone, Copy, Debug)]
-pub struct SurfaceLanes<L: Lanes> {
+pub struct SurfaceInteractions<L: Lanes> {
     pub p: V3<L::F>,
     pub p_error: V3<L::F>,
+    pub t: L::F,
     pub ng: V3<L::F>,
+    pub frame: Frames<L>,
+    /// (u, v).
+    pub uv: [L::F; 2],
+    pub dp_du: V3<L::F>,
+    pub dp_dv: V3<L::F>,
+    pub shape: L::U32,
+    pub prim: L::U32,
+    /// (b1, b2).
+    pub bary: [L::F; 2],
 }
 
-impl<L: Lanes> SurfaceLanes<L> {
+impl<L: Lanes> SurfaceInteractions<L> {
     #[inline(always)]
     pub fn zero(l: L) -> Self {
-        let v = V3::splat(l.splat(0.0));
-        SurfaceLanes {
+        let z = l.splat(0.0);
+        let v = V3::splat(z);
+        SurfaceInteractions {
             p: v,
             p_error: v,
+            t: z,
             ng: v,
+            frame: Frames { s: v, t: v, n: v },
+            uv: [z; 2],
+            dp_du: v,
+            dp_dv: v,
+            shape: l.splat_u32(0),
+            prim: l.splat_u32(0),
+            bary: [z; 2],
+        }
+    }
+
+    /// Lane `i`'s interaction.
+    #[inline(always)]
+    pub fn lane(&self, i: usize) -> SurfaceInteraction {
+        SurfaceInteraction {
+            p: self.p.lane(i),
+            p_error: self.p_error.lane(i),
+            t: self.t.lane(i),
+            ng: self.ng.lane(i),
+            frame: self.frame.lane(i),
+            uv: Vec2::new(self.uv[0].lane(i), self.uv[1].lane(i)),
+            dp_du: self.dp_du.lane(i),
+            dp_dv: self.dp_dv.lane(i),
+            shape: self.shape.lane(i),
+            prim: self.prim.lane(i),
+            bary: Vec2::new(self.bary[0].lane(i), self.bary[1].lane(i)),
         }
     }
 
@@ -126,18 +162,63 @@ impl<L: Lanes> SurfaceLanes<L> {
     pub fn set_lane(&mut self, i: usize, si: &SurfaceInteraction) {
         self.p.set_lane(i, si.p);
         self.p_error.set_lane(i, si.p_error);
+        self.t.set_lane(i, si.t);
         self.ng.set_lane(i, si.ng);
+        self.frame.set_lane(i, &si.frame);
+        self.uv[0].set_lane(i, si.uv.x);
+        self.uv[1].set_lane(i, si.uv.y);
+        self.dp_du.set_lane(i, si.dp_du);
+        self.dp_dv.set_lane(i, si.dp_dv);
+        self.shape.set_lane(i, si.shape);
+        self.prim.set_lane(i, si.prim);
+        self.bary[0].set_lane(i, si.bary.x);
+        self.bary[1].set_lane(i, si.bary.y);
+    }
+
+    /// `if m { a } else { b }` lane by lane.
+    #[inline(always)]
+    pub fn select(m: L::M, a: &Self, b: &Self) -> Self {
+        let f = |x: L::F, y: L::F| L::F::select(m, x, y);
+        let v = |x: V3<L::F>, y: V3<L::F>| V3::select(m, x, y);
+        SurfaceInteractions {
+            p: v(a.p, b.p),
+            p_error: v(a.p_error, b.p_error),
+            t: f(a.t, b.t),
+            ng: v(a.ng, b.ng),
+            frame: Frames::select(m, &a.frame, &b.frame),
+            uv: [f(a.uv[0], b.uv[0]), f(a.uv[1], b.uv[1])],
+            dp_du: v(a.dp_du, b.dp_du),
+            dp_dv: v(a.dp_dv, b.dp_dv),
+            shape: L::U32::select(m, a.shape, b.shape),
+            prim: L::U32::select(m, a.prim, b.prim),
+            bary: [f(a.bary[0], b.bary[0]), f(a.bary[1], b.bary[1])],
+        }
     }
 }
 
-impl From<&SurfaceInteraction> for SurfaceLanes<Scalar> {
+impl From<&SurfaceInteraction> for SurfaceInteractions<Scalar> {
     #[inline(always)]
     fn from(si: &SurfaceInteraction) -> Self {
-        SurfaceLanes {
+        SurfaceInteractions {
             p: si.p.into(),
             p_error: si.p_error.into(),
+            t: si.t,
             ng: si.ng.into(),
+            frame: si.frame.into(),
+            uv: [si.uv.x, si.uv.y],
+            dp_du: si.dp_du.into(),
+            dp_dv: si.dp_dv.into(),
+            shape: si.shape,
+            prim: si.prim,
+            bary: [si.bary.x, si.bary.y],
         }
+    }
+}
+
+impl From<SurfaceInteractions<Scalar>> for SurfaceInteraction {
+    #[inline(always)]
+    fn from(si: SurfaceInteractions<Scalar>) -> Self {
+        si.lane(0)
     }
 }
 

@@ -16,6 +16,10 @@ Usage:
     cargo build --release
     .venv/bin/python validation/perf/side_by_side.py [--spp 64] [--repeat 3]
         [--scene NAME ...] [--variants llvm_ad_rgb,scalar_rgb] [--threads N] [--out FILE.md]
+        [--engine scalar --engine lanes]
+
+With --engine (repeatable) penumbra renders each scene with each of its engines (`penumbra
+render --engine`), one row per scene and engine, against the same Mitsuba renders.
 """
 
 import argparse
@@ -51,7 +55,7 @@ def mse(a, b):
     return float(np.mean((a - b) ** 2))
 
 
-def penumbra_run(exe, scene, spp, seed, threads, tmp):
+def penumbra_run(exe, scene, spp, seed, threads, tmp, engine=None):
     out = Path(tmp) / "p.exr"
     stats = Path(tmp) / "p.json"
     cmd = [str(exe), "render", str(ROOT / scene["file"]), "--spp", str(spp), "--seed", str(seed),
@@ -62,6 +66,8 @@ def penumbra_run(exe, scene, spp, seed, threads, tmp):
         cmd += ["--integrator", scene["integrator"]]
     if threads:
         cmd += ["--threads", str(threads)]
+    if engine:
+        cmd += ["--engine", engine]
     subprocess.run(cmd, check=True)
     seconds = json.loads(stats.read_text())["seconds"]
     return seconds, load_exr(out)
@@ -131,6 +137,9 @@ def main():
     ap.add_argument("--penumbra", type=Path, default=ROOT / "target" / "release" / "penumbra",
                     help="the penumbra binary (default: target/release/penumbra; e.g. the "
                          "profile-guided build of deploy/pgo.sh)")
+    ap.add_argument("--engine", action="append", choices=["scalar", "lanes"],
+                    help="penumbra's engine (repeatable: a row per engine); default: "
+                         "penumbra's default")
     args = ap.parse_args()
     if os.path.exists(LLVM):
         os.environ.setdefault("DRJIT_LIBLLVM_PATH", LLVM)
@@ -149,20 +158,27 @@ def main():
     with tempfile.TemporaryDirectory() as tmp:
         for sc in scenes:
             ref = load_exr(ROOT / sc["reference"])
-            pen = [penumbra_run(args.penumbra, sc, args.spp, s, args.threads, tmp) for s in seeds]
-            pt = statistics.median(t for t, _ in pen)
-            pm = statistics.median(mse(img, ref) for _, img in pen)
             paths = ref.shape[0] * ref.shape[1] * args.spp
-            row = {"scene": sc["name"], "penumbra_s": pt, "penumbra_mse": pm,
-                   "penumbra_mpaths": paths / pt / 1e6}
+            scene_rows = []
+            for engine in args.engine or [None]:
+                pen = [penumbra_run(args.penumbra, sc, args.spp, s, args.threads, tmp, engine)
+                       for s in seeds]
+                pt = statistics.median(t for t, _ in pen)
+                pm = statistics.median(mse(img, ref) for _, img in pen)
+                name = sc["name"] + (f" ({engine})" if args.engine else "")
+                scene_rows.append({"scene": name, "penumbra_s": pt, "penumbra_mse": pm,
+                                   "penumbra_mpaths": paths / pt / 1e6})
             for v in variants:
                 runs = mitsuba_runs(sc, args.spp, seeds, v, args.threads)
                 mt = statistics.median(t for t, _ in runs)
                 mm = statistics.median(mse(img, ref) for _, img in runs)
-                row[v] = {"s": mt, "mse": mm, "ratio": (mt * mm) / (pt * pm),
-                          "mpaths": paths / mt / 1e6}
-            rows.append(row)
-            print(json.dumps(row), file=sys.stderr)
+                for row in scene_rows:
+                    row[v] = {"s": mt, "mse": mm,
+                              "ratio": (mt * mm) / (row["penumbra_s"] * row["penumbra_mse"]),
+                              "mpaths": paths / mt / 1e6}
+            for row in scene_rows:
+                rows.append(row)
+                print(json.dumps(row), file=sys.stderr)
 
     head = ["scene", "penumbra s", "Mpath/s", "MSE"]
     for v in variants:
@@ -170,6 +186,10 @@ def main():
     options = f" --threads {args.threads}" if args.threads else ""
     if args.penumbra != ap.get_default("penumbra"):
         options += f" --penumbra {args.penumbra}"
+    for engine in args.engine or []:
+        options += f" --engine {engine}"
+    if args.variants != ap.get_default("variants"):
+        options += f" --variants {args.variants}"
     lines = [
         f"Side-by-side at {args.spp} spp, medians of {args.repeat} seeds, "
         f"{args.threads or os.cpu_count()} thread(s); "

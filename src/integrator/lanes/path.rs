@@ -3,24 +3,28 @@
 //!
 //! 1. refill: every free lane takes the next (pixel, sample) pair of the tile's queue, in
 //!    the scalar engine's order (pixel by pixel, samples ascending), and its camera ray;
-//! 2. intersect every active lane's ray;
+//! 2. intersect every active lane's ray, and compute the surface interactions at the hits:
+//!    on meshes outside instances by the lane kernel ([`triangle_interactions`], once for
+//!    every mesh hit, each lane's triangle loaded from its own mesh), elsewhere lane by
+//!    lane;
 //! 3. at each hit, the emission and whether the path goes on ([`PathIntegrator::escape`],
 //!    [`PathIntegrator::at_surface`]);
 //! 4. at the lanes that go on, next-event estimation, BSDF sampling and Russian roulette
 //!    ([`PathIntegrator::scatter_lanes`], whose lane kernels run on all of them at once);
 //!
 //! and a lane whose path ended writes its result into the tile's slot for its sample.
-//! The path state lives in lanes ([`PathLanes`]); steps 2 and 3 are the scalar code called
-//! lane by lane on the state moved out of and back into the lanes.
+//! The path state lives in lanes ([`PathLanes`]); the traversal of step 2 and step 3 are
+//! the scalar code called lane by lane on the state moved out of and back into the lanes.
 
 use super::LaneStats;
+use crate::accel::Hit;
 use crate::geometry::Ray;
 use crate::integrator::path::{PathIntegrator, PathLanes, SurfaceStep};
 use crate::integrator::PathStats;
 use crate::material::ShadingBsdf;
 use crate::sampler::SampleStream;
 use crate::scene::Scene;
-use crate::shape::{SurfaceInteraction, SurfaceLanes};
+use crate::shape::{triangle_interactions, ShapeGeometry, SurfaceInteractions, TriangleLanes};
 use crate::simd::MAX_WIDTH;
 use crate::simd::{dispatch, Backend, LaneF32, LaneMask, LaneProgram, LaneU32, Lanes, V3};
 use crate::spectrum::Spectrum;
@@ -146,12 +150,11 @@ fn trace_queue<L: Lanes>(
     let width = L::WIDTH;
     let all = l.mask(u32::MAX);
     let mut p = Paths::new(l);
-    // What each lane's ray hit, between the intersection and the later steps.
-    let mut hits: [Option<SurfaceInteraction>; MAX_WIDTH] = [None; MAX_WIDTH];
+    // What each lane's ray hit, and where, between the intersection and the later steps.
+    let mut hits: [Option<Hit>; MAX_WIDTH] = [None; MAX_WIDTH];
+    let mut sis = SurfaceInteractions::zero(l);
     // Where the lanes' materials vary, their BSDFs, filled in place (see `Scene::bsdf_at`).
     let mut bsdf_bufs = vec![ShadingBsdf::new(); width];
-    // What the lane kernels read of the hits of the lanes that scatter.
-    let mut geo = SurfaceLanes::zero(l);
     let mut next = 0usize;
     counters.width = width as u64;
     loop {
@@ -188,10 +191,35 @@ fn trace_queue<L: Lanes>(
             counters.by_depth[d] += 1;
         }
 
-        // 2. Intersect.
+        // 2. Intersect, and the interactions at the hits: on meshes outside instances by
+        // the lane kernel, once for all of them (each lane's triangle loaded from its own
+        // mesh); elsewhere (analytic shapes, instances) lane by lane.
+        let zero = l.splat(0.0);
+        let mut tl = TriangleLanes::zero(l);
+        let (mut t, mut b1, mut b2) = (zero, zero, zero);
+        let mut on_mesh = 0u32;
         for i in lanes_of(active) {
             stats.rays += 1;
-            hits[i] = scene.intersect(&p.st.ray.lane(i));
+            let ray = p.st.ray.lane(i);
+            hits[i] = scene.accel.intersect(&ray, &scene.shapes);
+            let Some(hit) = &hits[i] else {
+                continue;
+            };
+            if let Some((s, k)) = scene.accel.mesh_triangle(hit) {
+                if let ShapeGeometry::Mesh(mesh) = &scene.shapes[s as usize].geometry {
+                    mesh.load_triangle(&mut tl, i, k, s);
+                    on_mesh |= 1 << i;
+                    t.set_lane(i, hit.t);
+                    b1.set_lane(i, hit.b1);
+                    b2.set_lane(i, hit.b2);
+                    continue;
+                }
+            }
+            sis.set_lane(i, &scene.accel.interaction(hit, &ray, &scene.shapes));
+        }
+        if on_mesh != 0 {
+            let r = triangle_interactions(l, &tl, t, b1, b2);
+            sis = SurfaceInteractions::select(l.mask(on_mesh), &r, &sis);
         }
 
         // 3. Emission where the rays ended; which paths go on.
@@ -203,14 +231,14 @@ fn trace_queue<L: Lanes>(
                     path.escape(scene, &mut st);
                     p.finish(i, st.result.into(), out);
                 }
-                Some(si) => match path.at_surface(scene, &mut st, si) {
+                Some(_) => match path.at_surface(scene, &mut st, sis.shape.lane(i), || sis.lane(i))
+                {
                     SurfaceStep::End => p.finish(i, st.result.into(), out),
                     SurfaceStep::Trace => p.st.put(l, i, &st),
                     SurfaceStep::Scatter { wi_world } => {
                         p.st.put(l, i, &st);
                         p.wi_world.set_lane(i, wi_world);
                         scatter |= 1 << i;
-                        geo.set_lane(i, si);
                     }
                 },
             }
@@ -228,8 +256,8 @@ fn trace_queue<L: Lanes>(
             &mut p.st,
             scatter,
             #[inline(always)]
-            |i| hits[i].as_ref().expect("a scattering lane has a hit"),
-            &geo,
+            |i| sis.lane(i),
+            &sis,
             p.wi_world,
             &mut p.samplers,
             stats,
