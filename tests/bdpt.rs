@@ -115,6 +115,18 @@ fn furnace_sphere_sums_the_geometric_series() {
     }
 }
 
+/// "RR ended" is the fraction of samples whose camera subpath Russian roulette ended, as
+/// `path` reports it. Inside the closed furnace sphere without a depth limit nothing else
+/// ends a camera subpath, so it is exactly 1; light subpaths, also ended by roulette, are
+/// not counted (when they were, the summary line said "RR ended 118.6%").
+#[test]
+fn russian_roulette_statistic_counts_camera_subpaths() {
+    let job = furnace(-1, 0.8, 1.0, 20.0);
+    let out = render_scene(&job, 4, SEED, Some(1));
+    assert_eq!(out.stats.paths, 16 * 16 * 4);
+    assert_eq!(out.stats.path.rr_terminated, out.stats.paths);
+}
+
 /// The diffuse Cornell box at 32 x 32 with `integrator` and max_depth `depth`, its emitters
 /// hidden from the camera (so that every path has at least two segments).
 fn cornell(integrator: &str, depth: i64) -> Job {

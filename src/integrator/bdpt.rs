@@ -936,7 +936,8 @@ impl Bdpt {
             if bounces >= self.rr_depth {
                 let q = (beta.max_element() * beta_scale * eta * eta).min(0.95);
                 if sampler.next_1d() >= q {
-                    stats.rr_terminated += 1;
+                    // Not counted in `rr_terminated`: that statistic is the fraction of
+                    // samples whose camera subpath roulette ended, as `path` reports it.
                     break;
                 }
                 beta /= q;
