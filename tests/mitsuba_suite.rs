@@ -212,3 +212,36 @@ fn mitsuba_regression_suite() {
     assert!(resolvable > 0, "the max_depth - 1 control resolved nowhere");
     assert!(failures.is_empty(), "{}", failures.join("\n"));
 }
+
+/// `suite --integrator NAME` (src/bin/suite.rs) renders each scene with its integrator
+/// switched, as `render --integrator` does, and judges it against the scene's own reference:
+/// the spot light's `direct` scene switched to `bdpt` passes Mitsuba's rule, and a media scene
+/// switched to `bdpt` is reported unsupported with bdpt's reason (with the switch ignored it
+/// renders with volpath and passes). Fast tier: the two scenes take about a second.
+#[test]
+fn suite_runner_switches_the_integrator() {
+    let run = |scene: &str| {
+        let out = std::process::Command::new(env!("CARGO_BIN_EXE_suite"))
+            .args(["--scene", scene, "--integrator", "bdpt", "--threads", "2"])
+            .output()
+            .expect("run the suite binary");
+        assert!(
+            out.status.success(),
+            "{}",
+            String::from_utf8_lossy(&out.stderr)
+        );
+        String::from_utf8(out.stdout).expect("utf-8")
+    };
+    let spot = run("spot_light/test_spot_direct");
+    assert!(
+        spot.contains("| spot_light/test_spot_direct | pass ")
+            && spot.contains("1 passed, 0 failed"),
+        "{spot}"
+    );
+    let media = run("participating_media/test_homo_null_envmap");
+    assert!(
+        media.contains("| unsupported | the bdpt integrator does not support participating media")
+            && media.contains("0 passed, 0 failed, 1 not loadable"),
+        "{media}"
+    );
+}
