@@ -482,10 +482,7 @@ mod tests {
             .map(|c| offset_reference(c[0], c[1], c[2], c[3]))
             .collect();
         let mut backends = 0;
-        for b in crate::simd::Backend::ALL
-            .into_iter()
-            .filter(|b| b.supported())
-        {
+        for b in crate::simd::Backend::all_supported() {
             backends += 1;
             let got = crate::simd::dispatch(b, OffsetProgram(&cases)).expect("supported");
             for (k, (g, w)) in got.iter().zip(&want).enumerate() {
@@ -638,10 +635,7 @@ mod tests {
                 .collect::<Vec<u32>>()
         };
         let mut backends = 0;
-        for b in crate::simd::Backend::ALL
-            .into_iter()
-            .filter(|b| b.supported())
-        {
+        for b in crate::simd::Backend::all_supported() {
             backends += 1;
             let got = crate::simd::dispatch(b, FrameProgram(&cases)).expect("supported");
             for (k, (g, w)) in got.iter().zip(&want).enumerate() {

@@ -76,7 +76,7 @@ fn check(name: &str, job: &Job, spp: u32, sampler: Option<Sampler>) {
     let oracle = render(job, Engine::Scalar, spp, 1, sampler);
     assert_eq!(oracle.stats.engine, EngineRan::Scalar);
     let mut backends = 0;
-    for backend in Backend::ALL.into_iter().filter(|b| b.supported()) {
+    for backend in Backend::all_supported() {
         backends += 1;
         for threads in [1, 2] {
             let what = format!("{name}, {backend}, {threads} thread(s)");

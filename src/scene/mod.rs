@@ -715,7 +715,7 @@ mod tests {
             ] {
                 assert!(want.iter().flatten().filter(|(ds, _)| kind(ds)).count() > 300);
             }
-            for b in Backend::ALL.into_iter().filter(|b| b.supported()) {
+            for b in Backend::all_supported() {
                 let got = dispatch(
                     b,
                     Sample {

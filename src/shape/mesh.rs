@@ -1092,10 +1092,7 @@ mod tests {
                 .iter()
                 .map(|&u| sample_position_reference(&mesh, u))
                 .collect();
-            for b in crate::simd::Backend::ALL
-                .into_iter()
-                .filter(|b| b.supported())
-            {
+            for b in crate::simd::Backend::all_supported() {
                 let got = crate::simd::dispatch(
                     b,
                     SamplePositions {
@@ -1331,10 +1328,7 @@ mod tests {
                 a.then(|| interaction_reference(&meshes[mi], tri as usize, t, b1, b2, mi as u32))
             })
             .collect();
-        for b in crate::simd::Backend::ALL
-            .into_iter()
-            .filter(|b| b.supported())
-        {
+        for b in crate::simd::Backend::all_supported() {
             let got = crate::simd::dispatch(
                 b,
                 Interactions {

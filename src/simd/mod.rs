@@ -407,6 +407,12 @@ impl Backend {
         }
     }
 
+    /// The backends this processor runs, in [`Backend::ALL`]'s order (what the tests that
+    /// compare every backend with the scalar code loop over).
+    pub fn all_supported() -> impl Iterator<Item = Backend> {
+        Backend::ALL.into_iter().filter(|b| b.supported())
+    }
+
     /// The widest 16-lane backend this processor runs: AVX-512, else AVX2, else portable.
     pub fn best() -> Backend {
         [Backend::Avx512, Backend::Avx2]
