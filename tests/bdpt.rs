@@ -55,6 +55,32 @@ fn mean_and_se(job: &Job, passes: u64, seed: u64) -> ([f64; 3], [f64; 3]) {
 
 /// A 16 x 16 view from inside a closed diffuse sphere (reflectance ρ, emitting `le`
 /// inwards) with a point light of intensity I at its centre, rendered by bdpt.
+/// `path` and `bdpt` render the same image mean: a two-sided z-test per channel at `z_crit`
+/// (seeds SEED and SEED + 1, `passes` passes each), and a standard error of the difference
+/// below `max_rel_se` of the mean (so that the test resolves a bias of a few times that).
+fn assert_path_and_bdpt_agree(
+    what: &str,
+    path: &Job,
+    bdpt: &Job,
+    passes: u64,
+    z_crit: f64,
+    max_rel_se: f64,
+) {
+    let (a, sa) = mean_and_se(path, passes, SEED);
+    let (b, sb) = mean_and_se(bdpt, passes, SEED + 1);
+    for c in 0..3 {
+        let se = (sa[c].powi(2) + sb[c].powi(2)).sqrt();
+        let z = (a[c] - b[c]).abs() / se;
+        assert!(
+            z < z_crit,
+            "{what}, channel {c}: path {} bdpt {} (z = {z:.2})",
+            a[c],
+            b[c]
+        );
+        assert!(se < max_rel_se * a[c], "{what}: se {se} of {}", a[c]);
+    }
+}
+
 fn furnace(max_depth: i64, rho: f64, le: f64, intensity: f64) -> Job {
     scene_from_str(&format!(
         r#"<scene version="3.0.0">
@@ -245,20 +271,15 @@ fn path_and_bdpt_agree_at_every_max_depth() {
     let depths = [2i64, 3, 5, -1];
     let z_crit = normal_critical_z(sidak(0.01, depths.len() * 3));
     for depth in depths {
-        let (a, sa) = mean_and_se(&cornell("path", depth), 128, SEED);
-        let (b, sb) = mean_and_se(&cornell("bdpt", depth), 128, SEED + 1);
-        for c in 0..3 {
-            let se = (sa[c].powi(2) + sb[c].powi(2)).sqrt();
-            let z = (a[c] - b[c]).abs() / se;
-            assert!(
-                z < z_crit,
-                "max_depth {depth}: path {} bdpt {} (z = {z:.2})",
-                a[c],
-                b[c]
-            );
-            // Resolves a 4% error at 4 standard errors.
-            assert!(se < 0.01 * a[c], "max_depth {depth}: se {se} of {}", a[c]);
-        }
+        // Resolves a 4% error at 4 standard errors.
+        assert_path_and_bdpt_agree(
+            &format!("max_depth {depth}"),
+            &cornell("path", depth),
+            &cornell("bdpt", depth),
+            128,
+            z_crit,
+            0.01,
+        );
     }
 }
 
@@ -286,19 +307,14 @@ fn hidden_emitters_are_passed_through_as_the_path_tracer_does() {
         )
     };
     let z_crit = normal_critical_z(sidak(0.01, 3));
-    let (a, sa) = mean_and_se(&scene_from_str(&xml("path")), 256, SEED);
-    let (b, sb) = mean_and_se(&scene_from_str(&xml("bdpt")), 256, SEED + 1);
-    for c in 0..3 {
-        let se = (sa[c].powi(2) + sb[c].powi(2)).sqrt();
-        let z = (a[c] - b[c]).abs() / se;
-        assert!(
-            z < z_crit,
-            "channel {c}: path {} bdpt {} (z = {z:.2})",
-            a[c],
-            b[c]
-        );
-        assert!(se < 0.01 * a[c], "se {se} of {}", a[c]);
-    }
+    assert_path_and_bdpt_agree(
+        "hidden emitters",
+        &scene_from_str(&xml("path")),
+        &scene_from_str(&xml("bdpt")),
+        256,
+        z_crit,
+        0.01,
+    );
 }
 
 /// A light subpath that cannot start (its emitter, picked at random, emits nothing) leaves
@@ -324,19 +340,14 @@ fn an_empty_light_subpath_leaves_next_event_estimation_its_share() {
         )
     };
     let z_crit = normal_critical_z(sidak(0.01, 3));
-    let (a, sa) = mean_and_se(&scene_from_str(&xml("path")), 512, SEED);
-    let (b, sb) = mean_and_se(&scene_from_str(&xml("bdpt")), 512, SEED + 1);
-    for c in 0..3 {
-        let se = (sa[c].powi(2) + sb[c].powi(2)).sqrt();
-        let z = (a[c] - b[c]).abs() / se;
-        assert!(
-            z < z_crit,
-            "channel {c}: path {} bdpt {} (z = {z:.2})",
-            a[c],
-            b[c]
-        );
-        assert!(se < 0.01 * a[c], "se {se} of {}", a[c]);
-    }
+    assert_path_and_bdpt_agree(
+        "black light beside a lit one",
+        &scene_from_str(&xml("path")),
+        &scene_from_str(&xml("bdpt")),
+        512,
+        z_crit,
+        0.01,
+    );
 }
 
 /// What the path tracer cannot render, bdpt does: a point light's caustic off a mirror
@@ -409,19 +420,7 @@ fn bent_normal_and_bump_mapped_surfaces_render_the_path_tracers_image() {
     for (file, bound) in files {
         let rel = format!("tests/data/ptracer-shading/{file}");
         let load = |integrator: &str| load(&rel, &[("integrator", integrator), ("res", "16")]);
-        let (a, sa) = mean_and_se(&load("path"), 1024, SEED);
-        let (b, sb) = mean_and_se(&load("bdpt"), 1024, SEED + 1);
-        for c in 0..3 {
-            let se = (sa[c].powi(2) + sb[c].powi(2)).sqrt();
-            let z = (a[c] - b[c]).abs() / se;
-            assert!(
-                z < z_crit,
-                "{file}, channel {c}: path {} bdpt {} (z = {z:.2})",
-                a[c],
-                b[c]
-            );
-            assert!(se < bound * a[c], "{file}: se {se} of {}", a[c]);
-        }
+        assert_path_and_bdpt_agree(file, &load("path"), &load("bdpt"), 1024, z_crit, bound);
     }
 }
 
