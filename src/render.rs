@@ -206,6 +206,23 @@ impl TileResult {
     }
 }
 
+/// Hands each finite splat of a row to `add` (film position in pixels, value) and counts
+/// the others as non-finite samples, for the light-tracing integrators' passes.
+fn add_finite_splats(
+    splats: &[Splat],
+    res: Vec2,
+    nonfinite: &mut u64,
+    mut add: impl FnMut(Vec2, crate::spectrum::Spectrum),
+) {
+    for sp in splats {
+        if sp.value.is_finite() {
+            add(sp.film * res, sp.value);
+        } else {
+            *nonfinite += 1;
+        }
+    }
+}
+
 /// The camera sample `s` (sample index `first_sample + s`) of pixel (x, y): its sample
 /// stream, film position (pixels) and ray. Both engines make their camera rays here.
 #[inline(always)]
@@ -460,13 +477,9 @@ fn render_particles(
                 pass.iter_mut().for_each(|p| *p = [0.0; 3]);
             }
             stats.path += row.stats;
-            for sp in &row.splats {
-                if sp.value.is_finite() {
-                    film.splat(&mut pass, sp.film * res, sp.value);
-                } else {
-                    stats.nonfinite += 1;
-                }
-            }
+            add_finite_splats(&row.splats, res, &mut stats.nonfinite, |p, v| {
+                film.splat(&mut pass, p, v)
+            });
         }
         done += ((end - batch) * w) as u64;
         progress(done, total);
@@ -570,13 +583,9 @@ fn render_bdpt(
                     stats.nonfinite += 1;
                 }
             }
-            for sp in &row.splats {
-                if sp.value.is_finite() {
-                    pass.add_splat(sp.film * res, sp.value);
-                } else {
-                    stats.nonfinite += 1;
-                }
-            }
+            add_finite_splats(&row.splats, res, &mut stats.nonfinite, |p, v| {
+                pass.add_splat(p, v)
+            });
         }
         done += ((end - batch) * cols) as u64;
         progress(done, total);
