@@ -7,11 +7,12 @@ use penumbra::camera::FovAxis;
 use penumbra::sampler::SamplerKind;
 use penumbra::scene::build::build;
 use penumbra::scene::description::{
-    from_xml, BsdfDesc, EmitterDesc, FilterDesc, IntegratorDesc, SamplerDesc, SceneDescription,
-    ShapeDesc, ShapeKind, TextureDesc, VolumeDesc, MAX_RESOLUTION,
+    from_xml, BsdfDesc, ColorDesc, EmitterDesc, FilterDesc, IntegratorDesc, SamplerDesc,
+    SceneDescription, ShapeDesc, ShapeKind, SpectralDesc, TextureDesc, VolumeDesc, MAX_RESOLUTION,
 };
 use penumbra::scene::xml::load_str;
 use penumbra::shape::ShapeGeometry;
+use penumbra::spectrum::ColorRole;
 use std::path::{Path, PathBuf};
 
 /// The path the scenes pretend to come from (it is never read).
@@ -1022,7 +1023,7 @@ fn simple_shapes_with_defaults() {
 fn default_bsdf_is_diffuse_one_half() {
     assert_eq!(
         BsdfDesc::default_diffuse(),
-        BsdfDesc::diffuse(TextureDesc::rgb(DVec3::splat(0.5)))
+        BsdfDesc::diffuse(TextureDesc::value(0.5))
     );
 }
 
@@ -1318,10 +1319,7 @@ fn diffuse_reflectance() {
     <bsdf type="diffuse"><float name="reflectance" value="0.25"/></bsdf>
 </shape>"#,
     );
-    assert_eq!(
-        s.bsdf,
-        BsdfDesc::diffuse(TextureDesc::rgb(DVec3::splat(0.25)))
-    );
+    assert_eq!(s.bsdf, BsdfDesc::diffuse(TextureDesc::value(0.25)));
     let s = one_shape(
         r#"<shape type="rectangle">
     <bsdf type="diffuse"><rgb name="reflectance" value="0.75"/></bsdf>
@@ -1370,7 +1368,7 @@ fn twosided_with_two_nested_bsdfs() {
             front: Box::new(BsdfDesc::diffuse(TextureDesc::rgb(DVec3::new(
                 0.1, 0.2, 0.3
             )))),
-            back: Box::new(BsdfDesc::diffuse(TextureDesc::rgb(DVec3::splat(0.9)))),
+            back: Box::new(BsdfDesc::diffuse(TextureDesc::value(0.9))),
         }
     );
 }
@@ -1544,11 +1542,14 @@ fn area_emitter_radiance() {
     assert_eq!(
         s.emitter,
         Some(EmitterDesc::Area {
-            radiance: TextureDesc::rgb(DVec3::new(18.387, 13.9873, 6.75357))
+            radiance: TextureDesc::color(ColorDesc {
+                rgb: DVec3::new(18.387, 13.9873, 6.75357),
+                spectral: SpectralDesc::D65(DVec3::new(18.387, 13.9873, 6.75357)),
+            })
         })
     );
     // Mitsuba gives an emitter without a BSDF a black diffuse one.
-    assert_eq!(s.bsdf, BsdfDesc::diffuse(TextureDesc::rgb(DVec3::ZERO)));
+    assert_eq!(s.bsdf, BsdfDesc::diffuse(TextureDesc::value(0.0)));
     let s = one_shape(
         r#"<shape type="sphere">
     <emitter type="area"><float name="radiance" value="3"/></emitter>
@@ -1558,10 +1559,11 @@ fn area_emitter_radiance() {
     assert_eq!(
         s.emitter,
         Some(EmitterDesc::Area {
-            radiance: TextureDesc::value(3.0)
+            // (a number an emitter reads is a D65 spectrum of that grey in spectral mode)
+            radiance: TextureDesc::number(3.0, ColorRole::Emission)
         })
     );
-    assert_eq!(s.bsdf, BsdfDesc::diffuse(TextureDesc::rgb(DVec3::ZERO)));
+    assert_eq!(s.bsdf, BsdfDesc::diffuse(TextureDesc::value(0.0)));
 }
 
 #[test]
@@ -1657,21 +1659,33 @@ fn scene_level_emitters_and_their_defaults() {
         vec![
             EmitterDesc::Point {
                 position: DVec3::new(0.0, 1.0, 2.0),
-                intensity: DVec3::splat(3.0)
+                intensity: ColorDesc {
+                    rgb: DVec3::splat(3.0),
+                    spectral: SpectralDesc::D65(DVec3::splat(3.0))
+                }
             },
             EmitterDesc::Spot {
                 to_world: DMat4::IDENTITY,
-                intensity: DVec3::ONE,
+                intensity: ColorDesc {
+                    rgb: DVec3::ONE,
+                    spectral: SpectralDesc::D65Scale(1.0)
+                },
                 cutoff_angle: 20.0,
                 beam_width: 15.0,
                 texture: None
             },
             EmitterDesc::Directional {
                 direction: DVec3::new(0.0, -1.0, 0.0),
-                irradiance: DVec3::ONE
+                irradiance: ColorDesc {
+                    rgb: DVec3::ONE,
+                    spectral: SpectralDesc::D65Scale(1.0)
+                }
             },
             EmitterDesc::Constant {
-                radiance: DVec3::splat(0.5)
+                radiance: ColorDesc {
+                    rgb: DVec3::splat(0.5),
+                    spectral: SpectralDesc::D65(DVec3::splat(0.5))
+                }
             },
         ]
     );
@@ -1748,10 +1762,7 @@ fn whole_scene_defaults_are_mitsubas() {
             radius: 1.0
         }
     );
-    assert_eq!(
-        d.shapes[0].bsdf,
-        BsdfDesc::diffuse(TextureDesc::rgb(DVec3::splat(0.5)))
-    );
+    assert_eq!(d.shapes[0].bsdf, BsdfDesc::diffuse(TextureDesc::value(0.5)));
 }
 
 #[test]
@@ -2102,14 +2113,8 @@ fn a_light_without_a_bsdf_is_black() {
         r#"<shape type="rectangle"><emitter type="area"><rgb name="radiance" value="1"/></emitter></shape>
            <shape type="rectangle"/>"#,
     );
-    assert_eq!(
-        d.shapes[0].bsdf,
-        BsdfDesc::diffuse(TextureDesc::rgb(DVec3::ZERO))
-    );
-    assert_eq!(
-        d.shapes[1].bsdf,
-        BsdfDesc::diffuse(TextureDesc::rgb(DVec3::splat(0.5)))
-    );
+    assert_eq!(d.shapes[0].bsdf, BsdfDesc::diffuse(TextureDesc::value(0.0)));
+    assert_eq!(d.shapes[1].bsdf, BsdfDesc::diffuse(TextureDesc::value(0.5)));
 }
 
 #[test]

@@ -143,7 +143,7 @@ impl MaterialBuilder {
     /// A texture from its description.
     pub fn texture(&mut self, d: &TextureDesc) -> Result<Texture> {
         Ok(match d {
-            TextureDesc::Constant { rgb, scalar } => Texture::Constant {
+            TextureDesc::Constant { rgb, scalar, .. } => Texture::Constant {
                 rgb: rgb.as_vec3(),
                 scalar: *scalar as f32,
             },
@@ -182,9 +182,10 @@ impl MaterialBuilder {
             }
             TextureDesc::Volume(v) => {
                 let scalar = match v {
-                    VolumeDesc::Constant { value, .. } => {
-                        TextureDesc::rgb(*value).constant_scalar().unwrap_or(0.0) as f32
-                    }
+                    VolumeDesc::Constant { value, .. } => TextureDesc::color(value.clone())
+                        .constant_scalar()
+                        .unwrap_or(0.0)
+                        as f32,
                     VolumeDesc::Grid { .. } => 0.0,
                 };
                 Texture::Volume(VolumeTexture::new(super::volume(v, self.shift)?, scalar))

@@ -298,7 +298,7 @@ fn medium(m: &MediumDesc, shift: DMat4) -> Result<Medium> {
 pub(super) fn volume(v: &VolumeDesc, shift: DMat4) -> Result<Volume> {
     Ok(match v {
         VolumeDesc::Constant { value, to_world } => Volume::Constant(ConstVolume::new(
-            value.as_vec3(),
+            value.rgb.as_vec3(),
             (shift * *to_world).as_mat4(),
         )),
         VolumeDesc::Grid {
@@ -398,7 +398,7 @@ fn scene_emitter(
             intensity,
         } => Emitter::Point(PointEmitter {
             position: shift.transform_point3(*position).as_vec3(),
-            intensity: intensity.as_vec3(),
+            intensity: intensity.rgb.as_vec3(),
         }),
         EmitterDesc::Spot {
             to_world,
@@ -414,7 +414,7 @@ fn scene_emitter(
             Emitter::Spot(
                 SpotEmitter::new(
                     shift * *to_world,
-                    intensity.as_vec3(),
+                    intensity.rgb.as_vec3(),
                     *cutoff_angle,
                     *beam_width,
                     texture,
@@ -453,10 +453,10 @@ fn scene_emitter(
             irradiance,
         } => Emitter::Directional(DirectionalEmitter {
             direction: direction.as_vec3(),
-            irradiance: irradiance.as_vec3(),
+            irradiance: irradiance.rgb.as_vec3(),
         }),
         EmitterDesc::Constant { radiance } => Emitter::Constant(ConstantEmitter {
-            radiance: radiance.as_vec3(),
+            radiance: radiance.rgb.as_vec3(),
         }),
         EmitterDesc::EnvMap {
             filename,

@@ -14,11 +14,11 @@ pub enum EmitterDesc {
     },
     Point {
         position: DVec3,
-        intensity: DVec3,
+        intensity: ColorDesc,
     },
     Spot {
         to_world: DMat4,
-        intensity: DVec3,
+        intensity: ColorDesc,
         /// Degrees.
         cutoff_angle: f64,
         beam_width: f64,
@@ -38,10 +38,10 @@ pub enum EmitterDesc {
     Directional {
         /// Unit direction in which the light travels (world).
         direction: DVec3,
-        irradiance: DVec3,
+        irradiance: ColorDesc,
     },
     Constant {
-        radiance: DVec3,
+        radiance: ColorDesc,
     },
     EnvMap {
         filename: PathBuf,
@@ -113,8 +113,8 @@ fn common_emitter_params(cx: &Ctx, o: &Object, p: &mut Props, ch: &mut Children)
 pub(super) fn scene_emitter_desc(cx: &Ctx, o: &Object) -> Result<(EmitterDesc, f64)> {
     let mut p = Props::new(o);
     let mut ch = Children::new(o);
-    let non_negative = |c: DVec3, what: &str| -> Result<DVec3> {
-        if c.min_element() < 0.0 || !c.is_finite() {
+    let non_negative = |c: ColorDesc, what: &str| -> Result<ColorDesc> {
+        if c.rgb.min_element() < 0.0 || !c.rgb.is_finite() {
             return Err(Error::scene(
                 &o.location,
                 format!("{what} of {} must be finite and not negative", describe(o)),
@@ -128,7 +128,7 @@ pub(super) fn scene_emitter_desc(cx: &Ctx, o: &Object) -> Result<(EmitterDesc, f
             let position = p.point("position", to_world.transform_point3(DVec3::ZERO))?;
             let intensity = p
                 .color("intensity", ColorRole::Emission)?
-                .unwrap_or(DVec3::ONE);
+                .unwrap_or_else(|| ColorDesc::default_for(1.0, ColorRole::Emission));
             EmitterDesc::Point {
                 position,
                 intensity: non_negative(intensity, "intensity")?,
@@ -138,7 +138,7 @@ pub(super) fn scene_emitter_desc(cx: &Ctx, o: &Object) -> Result<(EmitterDesc, f
             let to_world = p.transform("to_world")?;
             let intensity = p
                 .color("intensity", ColorRole::Emission)?
-                .unwrap_or(DVec3::ONE);
+                .unwrap_or_else(|| ColorDesc::default_for(1.0, ColorRole::Emission));
             let cutoff_angle = p.float("cutoff_angle", 20.0)?;
             let beam_width = p.float("beam_width", cutoff_angle * 0.75)?;
             if !(cutoff_angle > 0.0 && cutoff_angle <= 180.0) {
@@ -180,10 +180,18 @@ pub(super) fn scene_emitter_desc(cx: &Ctx, o: &Object) -> Result<(EmitterDesc, f
                 &mut ch,
                 "irradiance",
                 ColorRole::Emission,
-                TextureDesc::value(1.0),
+                TextureDesc::default_for(1.0, ColorRole::Emission),
             )?;
             if let Some(c) = irradiance.constant_rgb() {
-                non_negative(c, "irradiance")?;
+                if c.min_element() < 0.0 || !c.is_finite() {
+                    return Err(Error::scene(
+                        &o.location,
+                        format!(
+                            "irradiance of {} must be finite and not negative",
+                            describe(o)
+                        ),
+                    ));
+                }
             }
             let scale = p.float("scale", 1.0)?;
             if !(scale >= 0.0 && scale.is_finite()) {
@@ -218,7 +226,7 @@ pub(super) fn scene_emitter_desc(cx: &Ctx, o: &Object) -> Result<(EmitterDesc, f
             let direction = p.point("direction", to_world.transform_vector3(DVec3::Z))?;
             let irradiance = p
                 .color("irradiance", ColorRole::Emission)?
-                .unwrap_or(DVec3::ONE);
+                .unwrap_or_else(|| ColorDesc::default_for(1.0, ColorRole::Emission));
             let direction = direction.try_normalize().ok_or_else(|| {
                 Error::scene(
                     &o.location,
@@ -235,7 +243,7 @@ pub(super) fn scene_emitter_desc(cx: &Ctx, o: &Object) -> Result<(EmitterDesc, f
             p.transform("to_world")?;
             let radiance = p
                 .color("radiance", ColorRole::Emission)?
-                .unwrap_or(DVec3::ONE);
+                .unwrap_or_else(|| ColorDesc::default_for(1.0, ColorRole::Emission));
             EmitterDesc::Constant {
                 radiance: non_negative(radiance, "radiance")?,
             }

@@ -9,7 +9,7 @@ use super::*;
 #[derive(Clone, Debug, PartialEq)]
 pub enum VolumeDesc {
     Constant {
-        value: DVec3,
+        value: ColorDesc,
         to_world: DMat4,
     },
     Grid {
@@ -120,7 +120,7 @@ fn medium_desc(cx: &Ctx, o: &Object) -> Result<MediumDesc> {
         }
     }
     let constant = |v: f64| VolumeDesc::Constant {
-        value: DVec3::splat(v),
+        value: ColorDesc::default_for(v, ColorRole::Reflectance),
         to_world: DMat4::IDENTITY,
     };
     Ok(MediumDesc {
@@ -172,7 +172,7 @@ pub(super) fn volume_desc(cx: &Ctx, o: &Object) -> Result<VolumeDesc> {
         "constvolume" => VolumeDesc::Constant {
             value: p
                 .color("value", ColorRole::Unbounded)?
-                .unwrap_or(DVec3::ONE),
+                .unwrap_or_else(|| ColorDesc::default_for(1.0, ColorRole::Unbounded)),
             to_world,
         },
         "gridvolume" => {

@@ -10,6 +10,7 @@
 //! share.
 
 mod bsdf;
+mod color;
 mod emitter;
 mod integrator;
 mod medium;
@@ -18,6 +19,7 @@ mod shape;
 mod texture;
 
 pub use bsdf::*;
+pub use color::{ColorDesc, SpectralDesc};
 pub use emitter::*;
 pub use integrator::*;
 pub use medium::*;
@@ -245,7 +247,23 @@ impl<'a> Props<'a> {
     /// Mitsuba's RGB variants use when a plugin reads it in `role` (see
     /// [`crate::spectrum`]): spectra are integrated (a clamped out-of-gamut one adds a
     /// warning), and an `<rgb>` reflectance outside [0, 1] is an error, as in Mitsuba.
-    pub(super) fn color(&mut self, name: &str, role: ColorRole) -> Result<Option<DVec3>> {
+    ///
+    /// The spectrum Mitsuba's spectral variants make of the same value comes with it (see
+    /// [`ColorDesc`]).
+    pub(super) fn color(&mut self, name: &str, role: ColorRole) -> Result<Option<ColorDesc>> {
+        let spectral = match self.peek(name) {
+            Some(Value::Rgb(c)) => SpectralDesc::rgb(*c, role),
+            Some(Value::Float(x)) => SpectralDesc::number(*x, role),
+            Some(Value::Integer(i)) => SpectralDesc::number(*i as f64, role),
+            Some(Value::Spectrum(sp)) => SpectralDesc::spectrum(sp),
+            _ => SpectralDesc::uniform(0.0),
+        };
+        Ok(self
+            .color_rgb(name, role)?
+            .map(|rgb| ColorDesc { rgb, spectral }))
+    }
+
+    fn color_rgb(&mut self, name: &str, role: ColorRole) -> Result<Option<DVec3>> {
         match self.take(name) {
             None => Ok(None),
             Some((Value::Rgb(c), loc)) => {

@@ -15,6 +15,8 @@ pub enum TextureDesc {
     Constant {
         rgb: DVec3,
         scalar: f64,
+        /// What Mitsuba's spectral variants make of the same value.
+        spectral: SpectralDesc,
     },
     /// Mitsuba's `rawconstant`: the value as given, not converted (normal maps).
     Raw(DVec3),
@@ -51,22 +53,50 @@ pub struct BitmapDesc {
 }
 
 impl TextureDesc {
-    /// A constant colour (its one-value lookup is the mean, as Mitsuba's `srgb` texture; a
-    /// grey's is its value exactly, so that `rgb(splat(v)) == value(v)`).
+    /// A constant reflectance colour (its one-value lookup is the mean, as Mitsuba's `srgb`
+    /// texture; a grey's is its value exactly, so that `rgb(splat(v)) == value(v)` in RGB).
     pub fn rgb(c: DVec3) -> Self {
-        let scalar = if c.x == c.y && c.y == c.z {
-            c.x
-        } else {
-            (c.x + c.y + c.z) / 3.0
-        };
-        TextureDesc::Constant { rgb: c, scalar }
+        TextureDesc::color(ColorDesc {
+            rgb: c,
+            spectral: SpectralDesc::Srgb(c),
+        })
     }
 
-    /// A constant value (grey colour, that value for one-value lookups).
+    /// A constant colour parameter, in both its forms.
+    pub fn color(c: ColorDesc) -> Self {
+        let scalar = if c.rgb.x == c.rgb.y && c.rgb.y == c.rgb.z {
+            c.rgb.x
+        } else {
+            (c.rgb.x + c.rgb.y + c.rgb.z) / 3.0
+        };
+        TextureDesc::Constant {
+            rgb: c.rgb,
+            scalar,
+            spectral: c.spectral,
+        }
+    }
+
+    /// A constant value (grey colour, that value for one-value lookups; a flat spectrum).
     pub fn value(v: f64) -> Self {
+        TextureDesc::number(v, ColorRole::Reflectance)
+    }
+
+    /// A number given for a parameter read in `role` (an emitter's is a D65 spectrum in
+    /// spectral mode, see [`SpectralDesc::number`]).
+    pub fn number(v: f64, role: ColorRole) -> Self {
         TextureDesc::Constant {
             rgb: DVec3::splat(v),
             scalar: v,
+            spectral: SpectralDesc::number(v, role),
+        }
+    }
+
+    /// The value of a parameter read in `role` that was not given and defaults to `d`.
+    pub fn default_for(d: f64, role: ColorRole) -> Self {
+        TextureDesc::Constant {
+            rgb: DVec3::splat(d),
+            scalar: d,
+            spectral: SpectralDesc::default_for(d, role),
         }
     }
 
@@ -173,12 +203,12 @@ pub(super) fn texture_param(
     }
     match p.take(name) {
         None => Ok(None),
-        Some((Value::Float(x), _)) => Ok(Some(TextureDesc::value(*x))),
-        Some((Value::Integer(i), _)) => Ok(Some(TextureDesc::value(*i as f64))),
+        Some((Value::Float(x), _)) => Ok(Some(TextureDesc::number(*x, role))),
+        Some((Value::Integer(i), _)) => Ok(Some(TextureDesc::number(*i as f64, role))),
         Some(_) => {
             // Put it back for `color`, which knows every colour form and its errors.
             p.untake(name);
-            Ok(p.color(name, role)?.map(TextureDesc::rgb))
+            Ok(p.color(name, role)?.map(TextureDesc::color))
         }
     }
 }
@@ -291,7 +321,10 @@ pub(super) fn texture_desc(cx: &Ctx, o: &Object, role: ColorRole) -> Result<Text
             let c = p.color("color", role)?.ok_or_else(|| {
                 Error::scene(&o.location, format!("{} needs a 'color'", describe(o)))
             })?;
-            TextureDesc::rgb(c)
+            // An explicit `srgb` is upsampled as a reflectance in spectral mode even where an
+            // emitter reads it (no D65), as Mitsuba's plugin is.
+            let spectral = SpectralDesc::Srgb(c.rgb);
+            TextureDesc::color(ColorDesc { spectral, ..c })
         }
         "uniform" => {
             // The wavelength range matters only to spectral variants (outside it the
@@ -307,7 +340,12 @@ pub(super) fn texture_desc(cx: &Ctx, o: &Object, role: ColorRole) -> Result<Text
                     ),
                 ));
             }
-            TextureDesc::value(p.float("value", 1.0)?)
+            let value = p.float("value", 1.0)?;
+            TextureDesc::Constant {
+                rgb: DVec3::splat(value),
+                scalar: value,
+                spectral: SpectralDesc::Uniform { value, lo, hi },
+            }
         }
         "volume" => {
             // Mitsuba reads `volume` as an object only (a <float> or <rgb> is refused there).
