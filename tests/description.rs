@@ -12,7 +12,7 @@ use penumbra::scene::description::{
 };
 use penumbra::scene::xml::load_str;
 use penumbra::shape::ShapeGeometry;
-use penumbra::spectrum::ColorRole;
+use penumbra::spectrum::{ColorRole, SpectrumValue};
 use std::path::{Path, PathBuf};
 
 /// The path the scenes pretend to come from (it is never read).
@@ -2353,6 +2353,22 @@ fn table_kinds_read_as_mitsuba() {
         b.param("k").and_then(|t| t.constant_rgb()),
         Some(au([3.982997, 2.3855565, 1.6033592]))
     );
+    // Spectral mode renders the measured spectra behind those RGB values (Mitsuba's
+    // data/ior/Au.eta.spd: 56 pairs from 298.757050 nm, where eta = 1.795).
+    match b.param("eta") {
+        Some(TextureDesc::Constant {
+            spectral:
+                SpectralDesc::Sampled(SpectrumValue::Sampled {
+                    wavelengths,
+                    values,
+                }),
+            ..
+        }) => {
+            assert_eq!(wavelengths.len(), 56);
+            assert_eq!((wavelengths[0], values[0]), (298.757050, 1.795000));
+        }
+        other => panic!("Au eta is not a measured spectrum: {other:?}"),
+    }
     // IORs: the defaults (bk7 inside, air outside) and a name.
     let d = bsdf(r#"<bsdf type="dielectric"><string name="ext_ior" value="water"/></bsdf>"#);
     assert_eq!(d.param("int_ior"), Some(&v(1.5046f32 as f64)));

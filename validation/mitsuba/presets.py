@@ -1,7 +1,10 @@
 #!/usr/bin/env python3
 """Generate src/bsdf/presets.rs: Mitsuba 3's named IOR presets and the RGB (eta, k) of its
 named conductors, read from Mitsuba itself (scalar_rgb) by loading the plugins and inspecting
-their parameters, so penumbra uses exactly the values Mitsuba's RGB mode renders with.
+their parameters, so penumbra uses exactly the values Mitsuba's RGB mode renders with; and the
+measured spectra (eta, k) behind them, copied number for number from the `.spd` files Mitsuba
+ships in `mitsuba/data/ior/` (physical data; their headers name the source, mostly the luxpop
+database), which Mitsuba's spectral variants use as they are (an `irregular` spectrum each).
 
 Usage: python validation/mitsuba/presets.py [OUT.rs]   (default: src/bsdf/presets.rs)
 """
@@ -46,6 +49,21 @@ def conductor_value(name):
     return [float(x) for x in p["eta.value"]], [float(x) for x in p["k.value"]]
 
 
+def spd_pairs(path):
+    """(wavelengths, values) of a `.spd` file as the literal texts it holds."""
+    wl, vals = [], []
+    with open(path) as f:
+        for line in f:
+            line = line.split("#", 1)[0].strip()
+            if not line:
+                continue
+            a, b = line.split()
+            float(a), float(b)  # must be numbers
+            wl.append(a if ("." in a or "e" in a) else a + ".0")
+            vals.append(b if ("." in b or "e" in b) else b + ".0")
+    return wl, vals
+
+
 def f32(x):
     """Shortest literal that round-trips the f32 value (what clippy accepts)."""
     s = str(np.float32(x))
@@ -76,6 +94,17 @@ def main():
         fmt = lambda v: "[" + ", ".join(f32(x) for x in v) + "]"  # noqa: E731
         lines.append(f'    ("{n}", {fmt(eta)}, {fmt(k)}),')
     lines += ["];", ""]
+    lines += ["/// (name, eta wavelengths (nm), eta values, k wavelengths (nm), k values): the measured",
+              "/// spectra of each conductor, as Mitsuba's spectral variants use them.",
+              "#[allow(clippy::type_complexity)]",
+              "pub const CONDUCTOR_SPECTRA: &[(&str, &[f64], &[f64], &[f64], &[f64])] = &["]
+    d = os.path.join(os.path.dirname(mi.__file__), "data", "ior")
+    for n in conductor_names():
+        ew, ev = spd_pairs(os.path.join(d, n + ".eta.spd"))
+        kw, kv = spd_pairs(os.path.join(d, n + ".k.spd"))
+        lst = lambda v: "&[" + ", ".join(v) + "]"  # noqa: E731
+        lines.append(f'    ("{n}", {lst(ew)}, {lst(ev)}, {lst(kw)}, {lst(kv)}),')
+    lines += ["];", ""]
     lines += [
         "/// The index of refraction of a named IOR preset.",
         "pub fn ior(name: &str) -> Option<f32> {",
@@ -91,6 +120,18 @@ def main():
         "        .iter()",
         "        .find(|(n, _, _)| *n == name)",
         "        .map(|(_, e, k)| (*e, *k))",
+        "}",
+        "",
+        "/// The measured spectra (eta, k) of a named conductor, each as (wavelengths in nm,",
+        "/// values); `None` for `none` (the ideal mirror, a constant) and unknown names.",
+        "#[allow(clippy::type_complexity)]",
+        "pub fn conductor_spectra(",
+        "    name: &str,",
+        ") -> Option<((&'static [f64], &'static [f64]), (&'static [f64], &'static [f64]))> {",
+        "    CONDUCTOR_SPECTRA",
+        "        .iter()",
+        "        .find(|(n, ..)| *n == name)",
+        "        .map(|(_, ew, ev, kw, kv)| ((*ew, *ev), (*kw, *kv)))",
         "}",
         "",
     ]

@@ -6,7 +6,7 @@
 use super::texture::{texture_desc, texture_or, texture_param, Children};
 use super::*;
 use crate::bsdf::{ParamKind, PluginInfo};
-use crate::spectrum::ColorRole;
+use crate::spectrum::{ColorRole, SpectrumValue};
 
 #[derive(Clone, Debug, PartialEq)]
 pub enum BsdfDesc {
@@ -467,9 +467,20 @@ fn conductor_ior(
                     ),
                 )
             })?;
-            let v =
-                |a: [f32; 3]| TextureDesc::rgb(DVec3::new(a[0] as f64, a[1] as f64, a[2] as f64));
-            Ok((v(e), v(kk)))
+            // RGB mode: Mitsuba's RGB of the measured spectra; spectral mode: the spectra.
+            let ((ew, ev), (kw, kv)) =
+                crate::bsdf::presets::conductor_spectra(name).ok_or_else(|| {
+                    Error::scene(loc, format!("no spectra for conductor material '{name}'"))
+                })?;
+            let v = |a: [f32; 3], w: &[f64], x: &[f64]| -> Result<TextureDesc> {
+                let spectrum = SpectrumValue::sampled(w.to_vec(), x.to_vec())
+                    .map_err(|e| Error::scene(loc, format!("conductor material '{name}': {e}")))?;
+                Ok(TextureDesc::color(ColorDesc {
+                    rgb: DVec3::new(a[0] as f64, a[1] as f64, a[2] as f64),
+                    spectral: SpectralDesc::Sampled(spectrum),
+                }))
+            };
+            Ok((v(e, ew, ev)?, v(kk, kw, kv)?))
         }
         _ => {
             let eta = eta.unwrap_or(TextureDesc::value(defaults.0));
