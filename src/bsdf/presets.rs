@@ -380,7 +380,8 @@ pub const CONDUCTOR_PRESETS: &[(&str, [f32; 3], [f32; 3])] = &[
 
 /// (name, eta wavelengths (nm), eta values, k wavelengths (nm), k values): the measured
 /// spectra of each conductor, as Mitsuba's spectral variants use them.
-#[allow(clippy::type_complexity)]
+/// (Measured numbers: some happen to be close to pi or tau.)
+#[allow(clippy::type_complexity, clippy::approx_constant)]
 pub const CONDUCTOR_SPECTRA: &[(&str, &[f64], &[f64], &[f64], &[f64])] = &[
     (
         "Ag",

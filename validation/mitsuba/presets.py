@@ -96,7 +96,8 @@ def main():
     lines += ["];", ""]
     lines += ["/// (name, eta wavelengths (nm), eta values, k wavelengths (nm), k values): the measured",
               "/// spectra of each conductor, as Mitsuba's spectral variants use them.",
-              "#[allow(clippy::type_complexity)]",
+              "/// (Measured numbers: some happen to be close to pi or tau.)",
+              "#[allow(clippy::type_complexity, clippy::approx_constant)]",
               "pub const CONDUCTOR_SPECTRA: &[(&str, &[f64], &[f64], &[f64], &[f64])] = &["]
     d = os.path.join(os.path.dirname(mi.__file__), "data", "ior")
     for n in conductor_names():
