@@ -15,7 +15,7 @@ import sys
 # in Dr.Jit's code generation; 19 works (see the README, "Mitsuba on this machine").
 DEFAULT_LIBLLVM = "/usr/lib/x86_64-linux-gnu/libLLVM.so.19.1"
 
-VARIANT_CHOICES = ("auto", "llvm_ad_rgb", "scalar_rgb")
+VARIANT_CHOICES = ("auto", "llvm_ad_rgb", "scalar_rgb", "llvm_ad_spectral", "scalar_spectral")
 
 
 def _setup_llvm_env():
@@ -111,9 +111,16 @@ def make_rgb_moment_integrator(mi, nested):
     turned into per-channel RGB variances (that needs the cross moments). This wrapper keeps
     the nested integrator's RGB output as the film's R, G, B and adds three AOVs
     ``m2.R, m2.G, m2.B`` = the per-sample squares, which the film averages like any other
-    channel. Only for ``*_rgb`` variants. Efficient in JIT variants (the Python code is traced
-    once); in scalar variants it is called per sample and is very slow.
+    channel. Efficient in JIT variants (the Python code is traced once); in scalar variants it
+    is called per sample and is very slow.
+
+    In ``*_spectral`` variants the sample is a spectrum at the ray's 4 wavelengths; the film
+    turns ``weight * spectrum`` into linear sRGB with ``spectrum_to_srgb``, where ``weight`` is
+    the sensor's wavelength weight (1 / pdf of ``sample_rgb_spectrum`` for a sensor without a
+    response function, which is the case of every scene rendered here). The wrapper computes
+    the same RGB of the sample to square it.
     """
+    spectral = mi.is_spectral
 
     class RGBMomentIntegrator(mi.SamplingIntegrator):
         def __init__(self, nested_integrator):
@@ -122,7 +129,11 @@ def make_rgb_moment_integrator(mi, nested):
 
         def sample(self, scene, sampler, ray, medium=None, active=True):
             spec, valid, aovs = self.nested.sample(scene, sampler, ray, medium, active)
-            c = mi.Color3f(spec)
+            if spectral:
+                weight = mi.UnpolarizedSpectrum(1.0) / mi.pdf_rgb_spectrum(ray.wavelengths)
+                c = mi.spectrum_to_srgb(mi.unpolarized_spectrum(spec) * weight, ray.wavelengths)
+            else:
+                c = mi.Color3f(spec)
             return spec, valid, [c.x * c.x, c.y * c.y, c.z * c.z] + list(aovs)
 
         def aov_names(self):

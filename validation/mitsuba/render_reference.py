@@ -3,7 +3,8 @@
 
 Usage:
     python validation/mitsuba/render_reference.py SCENE.xml OUT.exr [--spp 4096]
-        [--pass-spp 256] [--variant auto|llvm_ad_rgb|scalar_rgb] [-D name=value ...]
+        [--pass-spp 256] [--variant auto|llvm_ad_rgb|scalar_rgb|llvm_ad_spectral|scalar_spectral]
+        [-D name=value ...]
 
 The image is rendered in passes of ``--pass-spp`` samples per pixel, each with its own seed
 (``seed_base + k``), and the passes are averaged (one render of w*h*spp samples is one
@@ -231,8 +232,8 @@ def main(argv=None):
     args = parse_args(argv)
     defines = mu.parse_defines(args.defines)
     mi, variant = mu.select_variant(args.variant)
-    if not variant.endswith("_rgb"):
-        raise SystemExit(f"only *_rgb variants are supported, got {variant}")
+    if not (variant.endswith("_rgb") or variant.endswith("_spectral")):
+        raise SystemExit(f"only *_rgb and *_spectral variants are supported, got {variant}")
     method = args.variance
     if method == "auto":
         method = "rgb-moment" if mu.is_jit_variant(variant) else "passes"
