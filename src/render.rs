@@ -18,6 +18,7 @@ use crate::integrator::{Integrator, ParticleTracer, PathStats};
 use crate::scene::description::SceneDescription;
 use crate::scene::Scene;
 use crate::simd::Backend;
+use crate::spectrum::to_rgb;
 use glam::Vec2;
 use rayon::prelude::*;
 use std::sync::atomic::{AtomicU64, Ordering};
@@ -196,7 +197,7 @@ impl TileResult {
         size: (i64, i64),
     ) {
         if l.is_finite() {
-            self.tile.add_sample(pos, l);
+            self.tile.add_sample(pos, to_rgb(l));
             if !((0..size.0).contains(&x) && (0..size.1).contains(&y)) {
                 self.tile.samples -= 1;
             }
@@ -478,7 +479,7 @@ fn render_particles(
             }
             stats.path += row.stats;
             add_finite_splats(&row.splats, res, &mut stats.nonfinite, |p, v| {
-                film.splat(&mut pass, p, v)
+                film.splat(&mut pass, p, to_rgb(v))
             });
         }
         done += ((end - batch) * w) as u64;
@@ -578,13 +579,13 @@ fn render_bdpt(
             stats.path += row.stats;
             for (pos, l) in row.samples {
                 if l.is_finite() {
-                    pass.add_sample(pos, l);
+                    pass.add_sample(pos, to_rgb(l));
                 } else {
                     stats.nonfinite += 1;
                 }
             }
             add_finite_splats(&row.splats, res, &mut stats.nonfinite, |p, v| {
-                pass.add_splat(p, v)
+                pass.add_splat(p, to_rgb(v))
             });
         }
         done += ((end - batch) * cols) as u64;

@@ -37,14 +37,59 @@
 
 use glam::DVec3;
 
-/// An RGB triple of linear sRGB-primaries values: what penumbra renders (RGB mode).
-pub type Spectrum = glam::Vec3;
+/// The radiometric quantity carried along a path: four `f32` lanes.
+///
+/// In RGB mode (the only mode today) the lanes hold linear sRGB-primaries values as
+/// **(R, G, B, G)**: lane 3 is a copy of green. Every componentwise operation (add, mul, div,
+/// sqrt, exp, min, max, select, ...) applied to equal inputs gives equal outputs, so lane 3
+/// stays bit-equal to lane 1 along the whole path: it never turns into NaN or infinity on its
+/// own (a zero fourth lane would make `a / b` a 0/0 NaN), and maxima and minima over the lanes
+/// are those of (R, G, B). Only operations that mix lanes (sums, dot products, lengths,
+/// means) must look at (R, G, B) alone: use [`to_rgb`] first. Build values with [`rgb`],
+/// [`from_rgb`], `Spectrum::splat`, `Spectrum::ZERO` or `Spectrum::ONE`, never with
+/// `Spectrum::new` (which sets lane 3 freely).
+///
+/// The four lanes match Mitsuba's spectral variants (`MI_WAVELENGTH_SAMPLES = 4`), whose
+/// paths carry four wavelengths: a spectral mode will fill the lanes with those.
+pub type Spectrum = glam::Vec4;
+
+/// Builds the RGB-mode [`Spectrum`] `(r, g, b, g)`.
+#[inline]
+pub const fn rgb(r: f32, g: f32, b: f32) -> Spectrum {
+    Spectrum::new(r, g, b, g)
+}
+
+/// The RGB-mode [`Spectrum`] of a linear sRGB triple: `(x, y, z, y)`.
+#[inline]
+pub const fn from_rgb(c: glam::Vec3) -> Spectrum {
+    rgb(c.x, c.y, c.z)
+}
+
+/// The RGB-mode [`Spectrum`] of a double-precision linear sRGB triple (a scene parameter),
+/// each channel rounded to `f32`.
+#[inline]
+pub fn from_rgb_f64(c: DVec3) -> Spectrum {
+    from_rgb(c.as_vec3())
+}
+
+/// The linear sRGB triple of an RGB-mode [`Spectrum`]: its lanes 0, 1, 2 (lane 3, a copy of
+/// lane 1, is dropped).
+#[inline]
+pub fn to_rgb(s: Spectrum) -> glam::Vec3 {
+    s.truncate()
+}
 
 /// Mitsuba's luminance of a linear sRGB colour (its `luminance()` weights): the one
 /// luminance of penumbra (Russian roulette, texture means, error estimates).
 #[inline]
-pub fn luminance(c: glam::Vec3) -> f32 {
+pub fn luminance_rgb(c: glam::Vec3) -> f32 {
     0.212671 * c.x + 0.715160 * c.y + 0.072169 * c.z
+}
+
+/// [`luminance_rgb`] of an RGB-mode [`Spectrum`] (lanes 0, 1, 2).
+#[inline]
+pub fn luminance(c: Spectrum) -> f32 {
+    luminance_rgb(to_rgb(c))
 }
 
 /// The exact sRGB decode (IEC 61966-2-1) of one channel in [0, 1].
@@ -566,6 +611,47 @@ fn shorten(text: &str) -> String {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// RGB mode's lane convention: (R, G, B, G), and the conversions to and from a triple.
+    #[test]
+    fn rgb_lanes_are_r_g_b_g_and_round_trip() {
+        let s = rgb(0.25, -2.5, 7.0);
+        assert_eq!(s.to_array(), [0.25, -2.5, 7.0, -2.5]);
+        let triples = [
+            glam::Vec3::new(0.1, 0.2, 0.3),
+            glam::Vec3::new(-0.0, 1e-40, 3.4e38),
+            glam::Vec3::new(f32::INFINITY, -1.0, f32::MIN_POSITIVE),
+        ];
+        for c in triples {
+            let s = from_rgb(c);
+            assert_eq!(
+                s.to_array().map(f32::to_bits),
+                [c.x, c.y, c.z, c.y].map(f32::to_bits)
+            );
+            assert_eq!(
+                to_rgb(s).to_array().map(f32::to_bits),
+                c.to_array().map(f32::to_bits)
+            );
+            assert_eq!(luminance(s).to_bits(), luminance_rgb(c).to_bits());
+        }
+        let d = glam::DVec3::new(0.1, 0.7, 1.0 / 3.0);
+        assert_eq!(from_rgb_f64(d), rgb(0.1, 0.7, (1.0f64 / 3.0) as f32));
+    }
+
+    /// Lane 3 follows lane 1 through componentwise arithmetic bit for bit: no lane of its own
+    /// turns into NaN (which a zero fourth lane would, in 0/0), and horizontal maxima and minima
+    /// are those of (R, G, B).
+    #[test]
+    fn lane_three_tracks_green_through_componentwise_maths() {
+        let a = rgb(0.0, 0.3, 2.0);
+        let b = rgb(0.0, 0.7, 0.5);
+        let c = (a / b).exp() * a.sqrt() + b.powf(1.7) - a.max(b).min(Spectrum::splat(0.6));
+        assert_eq!(c.w.to_bits(), c.y.to_bits());
+        assert!(c.y.is_finite() && c.x.is_nan()); // R is 0/0; G (and so lane 3) is not
+        let t = rgb(0.2, 0.9, 0.4) * rgb(0.5, 0.5, 3.0);
+        assert_eq!(t.max_element(), to_rgb(t).max_element());
+        assert_eq!(t.min_element(), to_rgb(t).min_element());
+    }
 
     fn repo_path(rel: &str) -> std::path::PathBuf {
         std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join(rel)

@@ -30,6 +30,7 @@ use penumbra::bsdf::Bsdf;
 use penumbra::geometry::Frame;
 use penumbra::material::ShadingBsdf;
 use penumbra::sampler::SampleStream;
+use penumbra::spectrum::Spectrum;
 use penumbra::study::chi2::{chi2_test_adaptive, Chi2Config, Chi2Result};
 use penumbra::study::stats::{normal_critical_z, sidak};
 use rayon::prelude::*;
@@ -582,10 +583,14 @@ fn null_and_transparent_mask_pass_light_through() {
         for _ in 0..100 {
             let wi = penumbra::sampling::square_to_uniform_sphere(rng.next_2d());
             let wo = penumbra::sampling::square_to_uniform_sphere(rng.next_2d());
-            assert_eq!((b.eval(wi, wo), b.pdf(wi, wo)), (Vec3::ZERO, 0.0), "{xml}");
+            assert_eq!(
+                (b.eval(wi, wo), b.pdf(wi, wo)),
+                (Spectrum::ZERO, 0.0),
+                "{xml}"
+            );
             let bs = b.sample(wi, rng.next_1d(), rng.next_2d()).expect(xml);
             assert!(
-                bs.delta && bs.wo == -wi && bs.weight == Vec3::ONE,
+                bs.delta && bs.wo == -wi && bs.weight == Spectrum::ONE,
                 "{xml}: {bs:?}"
             );
             assert!(!b.has_smooth_lobe(wi), "{xml}");
@@ -723,7 +728,7 @@ fn albedo(b: &ShadingBsdf, wi: Vec3, n: usize, seed: u64) -> (Vec3, Vec3) {
         let u1 = rng.next_1d();
         let u2 = rng.next_2d();
         if let Some(bs) = b.sample(wi, u1, u2) {
-            let w = (bs.weight * bs.eta * bs.eta).as_dvec3();
+            let w = penumbra::spectrum::to_rgb(bs.weight * bs.eta * bs.eta).as_dvec3();
             s += w;
             s2 += w * w;
         }
@@ -770,7 +775,7 @@ fn white_furnace_ideal_conductor_and_smooth_dielectric() {
     let mirror = bsdf_from_xml(r#"<bsdf type="conductor"/>"#);
     for wi in [dir(0.0, 0.0), dir(45.0, 20.0), dir(89.99, 0.0)] {
         let bs = mirror.sample(wi, 0.3, Vec2::splat(0.5)).unwrap();
-        assert_eq!(bs.weight, Vec3::ONE);
+        assert_eq!(bs.weight, Spectrum::ONE);
         assert!(bs.delta);
         assert!((bs.wo - Vec3::new(-wi.x, -wi.y, wi.z)).length() < 1e-6);
     }
@@ -808,7 +813,7 @@ fn white_furnace_ideal_conductor_and_smooth_dielectric() {
                 assert!(bs.delta);
                 // every sample carries exactly the energy it takes: R + T = 1
                 let e = bs.weight * bs.eta * bs.eta;
-                assert!((e - Vec3::ONE).abs().max_element() < 1e-5, "{xml}: {e}");
+                assert!((e - Spectrum::ONE).abs().max_element() < 1e-5, "{xml}: {e}");
                 if bs.wo.z * wi.z > 0.0 {
                     reflected += 1;
                     assert!((bs.wo - Vec3::new(-wi.x, -wi.y, wi.z)).length() < 1e-6);
@@ -995,7 +1000,7 @@ fn principled_cases() -> Vec<(Case, ShadingBsdf)> {
             r#"<bsdf type="principled"><rgb name="base_color" value="0.9, 0.3, 0.1"/><float name="roughness" value="0.35"/><float name="anisotropic" value="0.6"/><float name="metallic" value="0.3"/><float name="spec_trans" value="0.4"/><float name="specular" value="0.6"/><float name="spec_tint" value="0.4"/><float name="sheen" value="0.3"/><float name="sheen_tint" value="0.2"/><float name="flatness" value="0.3"/><float name="clearcoat" value="0.6"/><float name="clearcoat_gloss" value="0.3"/></bsdf>"#,
             0.07,
             PrincipledParams {
-                base_color: Vec3::new(0.9, 0.3, 0.1),
+                base_color: penumbra::spectrum::rgb(0.9, 0.3, 0.1),
                 roughness: 0.35,
                 anisotropic: 0.6,
                 metallic: 0.3,
@@ -1093,7 +1098,7 @@ fn principled_cases() -> Vec<(Case, ShadingBsdf)> {
             r#"<bsdf type="principledthin"><rgb name="base_color" value="0.7, 0.1, 0.1"/><float name="roughness" value="0.15"/><float name="spec_tint" value="0.1"/><float name="anisotropic" value="0.5"/><float name="spec_trans" value="0.8"/><float name="diff_trans" value="0.3"/><float name="eta" value="1.33"/></bsdf>"#,
             0.01,
             PrincipledThinParams {
-                base_color: Vec3::new(0.7, 0.1, 0.1),
+                base_color: penumbra::spectrum::rgb(0.7, 0.1, 0.1),
                 roughness: 0.15,
                 spec_tint: 0.1,
                 anisotropic: 0.5,
@@ -1166,7 +1171,7 @@ fn principled_lobe_choice_is_unbiased() {
     use penumbra::sampling::square_to_uniform_sphere;
     let p = PrincipledParams::default;
     let all = PrincipledParams {
-        base_color: Vec3::new(0.8, 0.5, 0.3),
+        base_color: penumbra::spectrum::rgb(0.8, 0.5, 0.3),
         roughness: 0.6,
         metallic: 0.2,
         spec_trans: 0.3,
@@ -1234,13 +1239,14 @@ fn principled_lobe_choice_is_unbiased() {
             for _ in 0..N {
                 if let Some(bs) = b.sample(*wi, rng.next_1d(), rng.next_2d()) {
                     if !bs.delta {
-                        let w = bs.weight.as_dvec3();
+                        let w = penumbra::spectrum::to_rgb(bs.weight).as_dvec3();
                         s1 += w;
                         q1 += w * w;
                     }
                 }
                 let wo = square_to_uniform_sphere(rng.next_2d());
-                let f = b.eval(*wi, wo).as_dvec3() * (4.0 * std::f64::consts::PI);
+                let f = penumbra::spectrum::to_rgb(b.eval(*wi, wo)).as_dvec3()
+                    * (4.0 * std::f64::consts::PI);
                 s2 += f;
                 q2 += f * f;
             }
@@ -1492,12 +1498,15 @@ fn importance_mode_weight_matches_eval_and_reciprocity() {
     let rad = glass.sample(wi, 0.99, Vec2::splat(0.5)).unwrap();
     assert!(imp.wo.z < 0.0 && rad.wo.z < 0.0);
     assert!(
-        (imp.weight - Vec3::ONE).abs().max_element() < 1e-6,
+        (imp.weight - Spectrum::ONE).abs().max_element() < 1e-6,
         "{}",
         imp.weight
     );
     assert!(
-        (rad.weight - Vec3::splat(1.0 / 2.25)).abs().max_element() < 1e-6,
+        (rad.weight - Spectrum::splat(1.0 / 2.25))
+            .abs()
+            .max_element()
+            < 1e-6,
         "{}",
         rad.weight
     );
@@ -1509,12 +1518,12 @@ fn importance_mode_weight_matches_eval_and_reciprocity() {
         .unwrap();
     let rad = glass.sample(-wi, 0.99, Vec2::splat(0.5)).unwrap();
     assert!(
-        (imp.weight - Vec3::ONE).abs().max_element() < 1e-6,
+        (imp.weight - Spectrum::ONE).abs().max_element() < 1e-6,
         "{}",
         imp.weight
     );
     assert!(
-        (rad.weight - Vec3::splat(2.25)).abs().max_element() < 1e-5,
+        (rad.weight - Spectrum::splat(2.25)).abs().max_element() < 1e-5,
         "{}",
         rad.weight
     );

@@ -144,7 +144,7 @@ fn principled_from_params(line: &str) -> penumbra::bsdf::Bsdf {
     let kv: Vec<(&str, &str)> = it.map(|s| s.split_once('=').unwrap()).collect();
     let rgb = |v: &str| {
         let c: Vec<f32> = v.split(',').map(|x| x.parse().unwrap()).collect();
-        Vec3::new(c[0], c[1], c[2])
+        penumbra::spectrum::rgb(c[0], c[1], c[2])
     };
     match plugin {
         "principled" => {
@@ -277,7 +277,7 @@ fn principled_bsdfs_match_mitsuba_values() {
             if wi.z < 0.0 && !b.has_smooth_lobe(wi) {
                 // Mitsuba's sampler is inactive there, its pdf is not
                 unreachable += 1;
-                if p != 0.0 || f != Vec3::ZERO {
+                if p != 0.0 || f != penumbra::spectrum::Spectrum::ZERO {
                     failures.push(format!("{name}: pdf {p} eval {f} from behind at {wi} {wo}"));
                 }
                 continue;
@@ -363,7 +363,7 @@ fn albedo_matches_mitsuba() {
             for _ in 0..N {
                 let (u1, u2) = (rng.next_1d(), rng.next_2d());
                 if let Some(bs) = b.sample(wi, u1, u2) {
-                    let w = (bs.weight * bs.eta * bs.eta).as_dvec3();
+                    let w = penumbra::spectrum::to_rgb(bs.weight * bs.eta * bs.eta).as_dvec3();
                     s += w;
                     s2 += w * w;
                 }

@@ -13,6 +13,7 @@ use penumbra::render::Job;
 use penumbra::sampler::SampleStream;
 use penumbra::scene::Scene;
 use penumbra::shape::SurfaceInteraction;
+use penumbra::spectrum::Spectrum;
 use penumbra::study::chi2::{chi2_test, Chi2Config};
 use penumbra::study::stats::{normal_critical_z, sidak};
 use std::f64::consts::PI;
@@ -50,15 +51,15 @@ fn reference_point(p: Vec3, n: Vec3) -> SurfaceInteraction {
 
 /// The density the path tracer's MIS uses for direction `d` from `p`, and the radiance it
 /// sees there: the emitter surface hit first, or the environment.
-fn pdf_and_radiance(scene: &Job, p: Vec3, d: Vec3) -> (f64, Vec3) {
+fn pdf_and_radiance(scene: &Job, p: Vec3, d: Vec3) -> (f64, Spectrum) {
     match scene.scene.intersect(&Ray::new(p, d, f32::INFINITY)) {
         Some(hit) => {
             let le = match scene.scene.shapes[hit.shape as usize].emitter {
                 Some(e) => match &scene.scene.emitters[e as usize] {
                     Emitter::Area(a) => a.eval(&hit, -d, &scene.scene.shapes),
-                    _ => Vec3::ZERO,
+                    _ => Spectrum::ZERO,
                 },
-                None => Vec3::ZERO,
+                None => Spectrum::ZERO,
             };
             (scene.scene.pdf_emitter_direction(p, &hit) as f64, le)
         }
@@ -569,7 +570,7 @@ fn delta_lights_give_mitsubas_values() {
         .sample_emitter_direction(&si, Vec2::splat(0.5))
         .unwrap();
     assert!(ds.delta && ds.pdf == 1.0 && (ds.dist - 2.0).abs() < 1e-6);
-    assert!((ds.radiance - Vec3::splat(0.75)).abs().max_element() < 1e-6);
+    assert!((ds.radiance - Spectrum::splat(0.75)).abs().max_element() < 1e-6);
     assert!((ds.d - Vec3::Z).length() < 1e-6);
     // The shadow ray ends a relative SHADOW_EPSILON short of the light, leaving from the
     // offset surface point.
@@ -610,7 +611,7 @@ fn delta_lights_give_mitsubas_values() {
         .sample_emitter_direction(&si, Vec2::splat(0.3))
         .unwrap();
     assert!(ds.delta && ds.is_infinite() && (ds.d - Vec3::Z).length() < 1e-6);
-    assert_eq!(ds.radiance, Vec3::splat(2.0));
+    assert_eq!(ds.radiance, Spectrum::splat(2.0));
     assert_eq!(Scene::shadow_ray(&si, &ds).tmax, f32::INFINITY);
 }
 

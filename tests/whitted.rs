@@ -11,6 +11,7 @@ use penumbra::integrator::PathStats;
 use penumbra::render::Job;
 use penumbra::sampler::SampleStream;
 use penumbra::scene::Scene;
+use penumbra::spectrum::Spectrum;
 
 /// A diffuse plane (reflectance 0.5) at y = 0 under a point light of intensity 4 at
 /// (0.3, 2, -0.2), seen from (0, 4, 3).
@@ -40,7 +41,7 @@ fn plane_xml(max_depth: u32, extra: &str) -> String {
     )
 }
 
-fn li(scene: &Job, pixel: Vec2, stream: u64) -> Vec3 {
+fn li(scene: &Job, pixel: Vec2, stream: u64) -> Spectrum {
     let ray = scene.scene.camera.generate_ray(pixel / 16.0);
     let mut sampler = SampleStream::new(stream, 7, 0);
     scene
@@ -57,9 +58,9 @@ fn analytic_direct(p: Vec3) -> f32 {
 }
 
 /// Asserts that `got` is `expected` in every channel to 1e-4 relative.
-fn assert_close(got: Vec3, expected: f32, what: &str) {
+fn assert_close(got: Spectrum, expected: f32, what: &str) {
     assert!(
-        ((got - Vec3::splat(expected)) / expected)
+        ((got - Spectrum::splat(expected)) / expected)
             .abs()
             .max_element()
             < 1e-4,
@@ -86,7 +87,7 @@ fn direct_light_of_a_point_light_is_the_analytic_value() {
     assert!(checked > 200, "the plane fills the view: {checked} pixels");
     // max_depth 1: emitters seen directly only, and a point light cannot be seen.
     let scene = plane_scene(1, "");
-    assert_eq!(li(&scene, Vec2::splat(8.0), 0), Vec3::ZERO);
+    assert_eq!(li(&scene, Vec2::splat(8.0), 0), Spectrum::ZERO);
 }
 
 /// `shadows` false (the ladder's "ray casting only"): a panel between the light and the
@@ -126,7 +127,7 @@ fn without_shadows_an_occluder_casts_no_shadow() {
                 &format!("pixel ({x}, {y}) without shadows"),
             );
             checked += 1;
-            if li(&shadows, pixel, 0) == Vec3::ZERO {
+            if li(&shadows, pixel, 0) == Spectrum::ZERO {
                 shadowed += 1;
             }
         }
@@ -148,7 +149,7 @@ fn rays_and_bounces_are_counted() {
 }
 
 /// The radiance of the image centre's camera ray and the counters of computing it.
-fn centre_pixel_with_stats(scene: &Job) -> (Vec3, PathStats) {
+fn centre_pixel_with_stats(scene: &Job) -> (Spectrum, PathStats) {
     let ray = scene.scene.camera.generate_ray(Vec2::splat(0.5));
     let mut stats = PathStats::default();
     let mut sampler = SampleStream::new(0, 7, 0);
@@ -207,7 +208,7 @@ fn no_randomness_given_the_camera_ray() {
             let pixel = Vec2::new(x as f32 + 0.5, y as f32 + 0.5);
             let a = li(&scene, pixel, 1);
             assert_eq!(a, li(&scene, pixel, 2), "pixel ({x}, {y})");
-            nonzero += (a != Vec3::ZERO) as u32;
+            nonzero += (a != Spectrum::ZERO) as u32;
         }
     }
     assert!(nonzero > 100, "{nonzero}");
@@ -256,7 +257,7 @@ fn glass_splits_into_fresnel_weighted_reflection_and_refraction() {
             let got = li(&with_glass, pixel, 0);
             let expected = f * 10.0;
             assert!(
-                ((got - Vec3::splat(expected)) / expected)
+                ((got - Spectrum::splat(expected)) / expected)
                     .abs()
                     .max_element()
                     < 1e-5,

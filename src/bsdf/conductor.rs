@@ -80,9 +80,9 @@ impl TablePlugin for Conductor {
 
     fn from_params(v: &[DVec3], _: &mut PluginCache) -> Self {
         Conductor {
-            eta: v[0].as_vec3(),
-            k: v[1].as_vec3(),
-            specular_reflectance: v[2].as_vec3(),
+            eta: crate::spectrum::from_rgb_f64(v[0]),
+            k: crate::spectrum::from_rgb_f64(v[1]),
+            specular_reflectance: crate::spectrum::from_rgb_f64(v[2]),
         }
     }
 }

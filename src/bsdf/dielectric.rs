@@ -121,8 +121,8 @@ impl TablePlugin for Dielectric {
     fn from_params(v: &[DVec3], _: &mut PluginCache) -> Self {
         Dielectric {
             eta: (v[0].x / v[1].x) as f32,
-            specular_reflectance: v[2].as_vec3(),
-            specular_transmittance: v[3].as_vec3(),
+            specular_reflectance: crate::spectrum::from_rgb_f64(v[2]),
+            specular_transmittance: crate::spectrum::from_rgb_f64(v[3]),
         }
     }
 }
@@ -178,13 +178,13 @@ mod tests {
     fn branches_are_the_outcomes_of_sample() {
         let dielectric = Dielectric {
             eta: 1.5,
-            specular_reflectance: Spectrum::new(0.9, 0.8, 0.7),
-            specular_transmittance: Spectrum::new(0.6, 0.5, 0.4),
+            specular_reflectance: crate::spectrum::rgb(0.9, 0.8, 0.7),
+            specular_transmittance: crate::spectrum::rgb(0.6, 0.5, 0.4),
         };
         let thin = ThinDielectric {
             eta: 1.33,
-            specular_reflectance: Spectrum::new(0.9, 0.8, 0.7),
-            specular_transmittance: Spectrum::new(0.6, 0.5, 0.4),
+            specular_reflectance: crate::spectrum::rgb(0.9, 0.8, 0.7),
+            specular_transmittance: crate::spectrum::rgb(0.6, 0.5, 0.4),
         };
         let mut tir = 0;
         for k in 0..400 {

@@ -60,7 +60,7 @@ impl TablePlugin for Diffuse {
 
     fn from_params(v: &[DVec3], _: &mut PluginCache) -> Self {
         Diffuse {
-            reflectance: v[0].as_vec3(),
+            reflectance: crate::spectrum::from_rgb_f64(v[0]),
         }
     }
 }

@@ -9,6 +9,7 @@
 //! - The hemispherical average of the dielectric reflectance (cosine weighted, "Fdr"), by
 //!   numerical quadrature, for the internal-scattering terms of the plastic models.
 
+use crate::spectrum::Spectrum;
 use glam::Vec3;
 
 /// Reflectance of a dielectric interface and the refraction geometry.
@@ -130,14 +131,13 @@ fn fresnel_conductor_1(cos_theta_i: f64, eta: f64, k: f64) -> f64 {
     (0.5 * (rs + rp)).clamp(0.0, 1.0)
 }
 
-/// Per-channel conductor reflectance for an RGB complex IOR.
-pub fn fresnel_conductor(cos_theta_i: f32, eta: Vec3, k: Vec3) -> Vec3 {
+/// Per-lane conductor reflectance for a complex IOR given per lane.
+pub fn fresnel_conductor(cos_theta_i: f32, eta: Spectrum, k: Spectrum) -> Spectrum {
     let c = cos_theta_i as f64;
-    Vec3::new(
-        fresnel_conductor_1(c, eta.x as f64, k.x as f64) as f32,
-        fresnel_conductor_1(c, eta.y as f64, k.y as f64) as f32,
-        fresnel_conductor_1(c, eta.z as f64, k.z as f64) as f32,
-    )
+    let (eta, k) = (eta.to_array(), k.to_array());
+    Spectrum::from_array(std::array::from_fn(|i| {
+        fresnel_conductor_1(c, eta[i] as f64, k[i] as f64) as f32
+    }))
 }
 
 /// Mirror reflection of `wi` about the normal `m`.
@@ -229,16 +229,21 @@ mod tests {
     fn conductor_known_values() {
         // Ideal mirror.
         for c in [0.0, 1e-7, 0.3, 1.0] {
-            assert!((fresnel_conductor(c, Vec3::ZERO, Vec3::ONE) - Vec3::ONE).length() < 1e-6);
+            assert!(
+                (fresnel_conductor(c, Spectrum::ZERO, Spectrum::ONE) - Spectrum::ONE).length()
+                    < 1e-6
+            );
         }
         // Normal incidence: ((η−1)² + k²) / ((η+1)² + k²).
         let (e, k) = (0.2f32, 3.9f32);
         let want = ((e - 1.0).powi(2) + k * k) / ((e + 1.0).powi(2) + k * k);
-        assert!((fresnel_conductor(1.0, Vec3::splat(e), Vec3::splat(k)).x - want).abs() < 1e-6);
+        assert!(
+            (fresnel_conductor(1.0, Spectrum::splat(e), Spectrum::splat(k)).x - want).abs() < 1e-6
+        );
         // k = 0 reduces to the dielectric formula.
         for c in [0.1f32, 0.5, 0.9] {
             let d = fresnel_dielectric(c, 1.7).f;
-            let m = fresnel_conductor(c, Vec3::splat(1.7), Vec3::ZERO).x;
+            let m = fresnel_conductor(c, Spectrum::splat(1.7), Spectrum::ZERO).x;
             assert!((d - m).abs() < 1e-6, "{c}: {d} vs {m}");
         }
     }

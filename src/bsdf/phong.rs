@@ -18,7 +18,7 @@
 use super::plugin::{BsdfModel, ParamKind, ParamSpec, PluginCache, TablePlugin};
 use super::{BsdfSample, Spectrum};
 use crate::sampling::{square_to_cosine_hemisphere, square_to_cosine_hemisphere_pdf};
-use crate::spectrum::ColorRole;
+use crate::spectrum::{to_rgb, ColorRole};
 use glam::{DVec3, Vec2, Vec3};
 use std::f32::consts::{FRAC_1_PI, PI};
 
@@ -61,7 +61,11 @@ impl TablePlugin for Phong {
     const PARAMS: &'static [ParamSpec] = PARAMS;
 
     fn from_params(v: &[DVec3], _: &mut PluginCache) -> Self {
-        Phong::new(v[0].x as f32, v[1].as_vec3(), v[2].as_vec3())
+        Phong::new(
+            v[0].x as f32,
+            crate::spectrum::from_rgb_f64(v[1]),
+            crate::spectrum::from_rgb_f64(v[2]),
+        )
     }
 
     /// kd + ks ≤ 1 in every channel (to 1e-6) when both are constants: more would reflect
@@ -93,8 +97,8 @@ impl Phong {
 
     /// Probability of sampling the specular lobe.
     fn specular_weight(&self) -> f32 {
-        let s = self.specular_reflectance.element_sum() / 3.0;
-        let d = self.diffuse_reflectance.element_sum() / 3.0;
+        let s = to_rgb(self.specular_reflectance).element_sum() / 3.0;
+        let d = to_rgb(self.diffuse_reflectance).element_sum() / 3.0;
         if s + d > 0.0 {
             s / (s + d)
         } else {

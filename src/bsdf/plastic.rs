@@ -22,7 +22,7 @@ use super::fresnel::{diffuse_fresnel_reflectance_fit, fresnel_dielectric};
 use super::plugin::{ParamKind, ParamSpec, PluginCache, TablePlugin};
 use super::{BsdfSample, Spectrum};
 use crate::sampling::{square_to_cosine_hemisphere, square_to_cosine_hemisphere_pdf};
-use crate::spectrum::ColorRole;
+use crate::spectrum::{to_rgb, ColorRole};
 use glam::DVec3;
 use glam::{Vec2, Vec3};
 use std::f32::consts::FRAC_1_PI;
@@ -82,7 +82,10 @@ pub struct Plastic {
 
 /// w_s = mean(specular) / (mean(specular) + mean(diffuse)); 0.5 if both are black.
 pub(super) fn specular_sampling_weight(specular: Spectrum, diffuse: Spectrum) -> f32 {
-    let (s, d) = (specular.element_sum() / 3.0, diffuse.element_sum() / 3.0);
+    let (s, d) = (
+        to_rgb(specular).element_sum() / 3.0,
+        to_rgb(diffuse).element_sum() / 3.0,
+    );
     if s + d > 0.0 {
         s / (s + d)
     } else {
@@ -192,8 +195,8 @@ impl TablePlugin for Plastic {
     fn from_params(v: &[DVec3], _: &mut PluginCache) -> Self {
         Plastic::new(
             (v[0].x / v[1].x) as f32,
-            v[2].as_vec3(),
-            v[3].as_vec3(),
+            crate::spectrum::from_rgb_f64(v[2]),
+            crate::spectrum::from_rgb_f64(v[3]),
             v[4].x != 0.0,
         )
     }

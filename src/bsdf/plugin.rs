@@ -374,7 +374,7 @@ mod tests {
                 } else {
                     BsdfParam::TableColor(i as u8)
                 };
-                got.set_param(slot, x.as_vec3());
+                got.set_param(slot, crate::spectrum::from_rgb_f64(x));
                 got.params_set();
                 let mut nonzero = false;
                 for (a, b) in dirs {

@@ -649,7 +649,7 @@ impl TablePlugin for Principled {
 
     fn from_params(v: &[DVec3], _: &mut PluginCache) -> Self {
         Principled::new(PrincipledParams {
-            base_color: v[0].as_vec3(),
+            base_color: crate::spectrum::from_rgb_f64(v[0]),
             roughness: v[1].x as f32,
             anisotropic: v[2].x as f32,
             has_spec_trans: v[3].x != 0.0,
@@ -834,7 +834,7 @@ mod tests {
         vec![
             d,
             PrincipledParams {
-                base_color: Vec3::new(0.9, 0.3, 0.1),
+                base_color: crate::spectrum::rgb(0.9, 0.3, 0.1),
                 roughness: 0.3,
                 anisotropic: 0.7,
                 metallic: 0.4,
@@ -915,6 +915,6 @@ mod tests {
         assert!(!b.has_smooth_lobe(wi) && !b.is_transmissive());
         assert!(b.sample(wi, 0.5, Vec2::splat(0.5)).is_none());
         let wo = Vec3::new(-0.3, 0.0, -0.95).normalize();
-        assert_eq!((b.eval(wi, wo), b.pdf(wi, wo)), (Vec3::ZERO, 0.0));
+        assert_eq!((b.eval(wi, wo), b.pdf(wi, wo)), (Spectrum::ZERO, 0.0));
     }
 }

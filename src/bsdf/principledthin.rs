@@ -308,7 +308,7 @@ impl TablePlugin for PrincipledThin {
 
     fn from_params(v: &[DVec3], _: &mut PluginCache) -> Self {
         PrincipledThin::new(PrincipledThinParams {
-            base_color: v[0].as_vec3(),
+            base_color: crate::spectrum::from_rgb_f64(v[0]),
             roughness: v[1].x as f32,
             anisotropic: v[2].x as f32,
             spec_trans: v[3].x as f32,
@@ -387,7 +387,7 @@ mod tests {
         vec![
             d,
             PrincipledThinParams {
-                base_color: Vec3::new(0.7, 0.1, 0.1),
+                base_color: crate::spectrum::rgb(0.7, 0.1, 0.1),
                 roughness: 0.15,
                 spec_tint: 0.1,
                 anisotropic: 0.5,

@@ -88,9 +88,9 @@ impl TablePlugin for RoughConductor {
     fn from_params(v: &[DVec3], _: &mut PluginCache) -> Self {
         RoughConductor {
             distribution: Microfacet::from_params(v[0].x, v[1].x, v[2].x, v[3].x),
-            eta: v[4].as_vec3(),
-            k: v[5].as_vec3(),
-            specular_reflectance: v[6].as_vec3(),
+            eta: crate::spectrum::from_rgb_f64(v[4]),
+            k: crate::spectrum::from_rgb_f64(v[5]),
+            specular_reflectance: crate::spectrum::from_rgb_f64(v[6]),
         }
     }
 }

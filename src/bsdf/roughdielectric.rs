@@ -164,8 +164,8 @@ impl TablePlugin for RoughDielectric {
         RoughDielectric {
             distribution: Microfacet::from_params(v[0].x, v[1].x, v[2].x, v[3].x),
             eta: (v[4].x / v[5].x) as f32,
-            specular_reflectance: v[6].as_vec3(),
-            specular_transmittance: v[7].as_vec3(),
+            specular_reflectance: crate::spectrum::from_rgb_f64(v[6]),
+            specular_transmittance: crate::spectrum::from_rgb_f64(v[7]),
         }
     }
 }

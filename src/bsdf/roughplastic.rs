@@ -320,8 +320,8 @@ impl TablePlugin for RoughPlastic {
         RoughPlastic::with_tables(
             distribution,
             eta,
-            v[5].as_vec3(),
-            v[6].as_vec3(),
+            crate::spectrum::from_rgb_f64(v[5]),
+            crate::spectrum::from_rgb_f64(v[6]),
             v[7].x != 0.0,
             &tables,
         )

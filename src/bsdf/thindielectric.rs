@@ -105,8 +105,8 @@ impl TablePlugin for ThinDielectric {
     fn from_params(v: &[DVec3], _: &mut PluginCache) -> Self {
         ThinDielectric {
             eta: (v[0].x / v[1].x) as f32,
-            specular_reflectance: v[2].as_vec3(),
-            specular_transmittance: v[3].as_vec3(),
+            specular_reflectance: crate::spectrum::from_rgb_f64(v[2]),
+            specular_transmittance: crate::spectrum::from_rgb_f64(v[3]),
         }
     }
 }

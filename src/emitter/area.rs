@@ -20,7 +20,7 @@ use crate::shape::{
     Mesh, PositionSamples, Shape, ShapeGeometry, Sphere, SurfaceInteraction, UvGrid,
 };
 use crate::simd::{LaneF32, Lanes, Scalar, V3};
-use crate::spectrum::Spectrum;
+use crate::spectrum::{from_rgb, Spectrum};
 use crate::texture::{Texture, TextureContext};
 use glam::{DVec3, Vec2, Vec3};
 
@@ -149,7 +149,7 @@ impl AreaEmitter {
             return Spectrum::ZERO;
         }
         match &self.radiance {
-            Texture::Constant { rgb, .. } => *rgb,
+            Texture::Constant { rgb, .. } => from_rgb(*rgb),
             t => t.eval(&texture_context(si, &shapes[self.shape as usize].geometry)),
         }
     }
@@ -175,7 +175,7 @@ impl AreaEmitter {
         };
         if let ShapeGeometry::Sphere(s) = geometry {
             if let Some(cone) = sphere_cone(s, p_ref) {
-                return self.sample_sphere_cone(radiance, s, p_ref, u, cone);
+                return self.sample_sphere_cone(from_rgb(radiance), s, p_ref, u, cone);
             }
         }
         // Uniform by area, converted to solid angle: the width-1 instance of the lane
@@ -315,7 +315,7 @@ impl AreaEmitter {
                     p_error: ps.p_error,
                     n: ps.n,
                     ng: ps.n,
-                    radiance: *rgb,
+                    radiance: from_rgb(*rgb),
                     pdf: ps.pdf,
                 }
             }

@@ -15,7 +15,7 @@
 
 use super::DirectionSample;
 use crate::sampling::Distribution2D;
-use crate::spectrum::Spectrum;
+use crate::spectrum::{from_rgb, Spectrum};
 use glam::{Mat3, Vec2, Vec3};
 use std::f32::consts::PI;
 
@@ -45,7 +45,10 @@ impl EnvMapEmitter {
         if width == 0 || height < 2 || texels.len() != width * height {
             return None;
         }
-        let texels: Vec<Spectrum> = texels.iter().map(|t| Vec3::from(*t) * scale).collect();
+        let texels: Vec<Spectrum> = texels
+            .iter()
+            .map(|t| from_rgb(Vec3::from(*t) * scale))
+            .collect();
         let lum: Vec<f64> = texels
             .iter()
             .map(|t| luminance(*t).max(0.0) as f64)
@@ -188,7 +191,7 @@ mod tests {
             .map(|k| [1.0 + k as f32, 2.0 * k as f32 + 0.5, (k * k) as f32])
             .collect();
         let e = EnvMapEmitter::new(w, h, &texels, 2.0, Mat3::IDENTITY).unwrap();
-        let t = |i: usize, j: usize| Vec3::from(texels[j * w + i % w]) * 2.0;
+        let t = |i: usize, j: usize| from_rgb(Vec3::from(texels[j * w + i % w]) * 2.0);
         for j in 1..h - 1 {
             for i in 0..w {
                 let d = direction((i as f32 + 0.5) / w as f32, j as f32 / (h - 1) as f32);

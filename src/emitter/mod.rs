@@ -23,7 +23,7 @@ use crate::geometry::{Frame, Ray};
 use crate::sampling::square_to_uniform_disk_concentric;
 use crate::shape::Shape;
 use crate::simd::{for_each_lane, LaneF32, LaneMask, Lanes, Scalar, V3};
-use crate::spectrum::Spectrum;
+use crate::spectrum::{from_rgb, to_rgb, Spectrum};
 use glam::{Vec2, Vec3};
 
 /// A ray leaving an emitter, for light tracing (Mitsuba's `Emitter::sample_ray`): the ray
@@ -181,7 +181,7 @@ impl<L: Lanes> DirectionSamples<L> {
             d: self.d.lane(i),
             dist: self.dist.lane(i),
             pdf: self.pdf.lane(i),
-            radiance: self.radiance.lane(i),
+            radiance: from_rgb(self.radiance.lane(i)),
             delta: self.delta.bits() >> i & 1 != 0,
         }
     }
@@ -194,7 +194,7 @@ impl<L: Lanes> DirectionSamples<L> {
         self.d.set_lane(i, ds.d);
         self.dist.set_lane(i, ds.dist);
         self.pdf.set_lane(i, ds.pdf);
-        self.radiance.set_lane(i, ds.radiance);
+        self.radiance.set_lane(i, to_rgb(ds.radiance));
         let bit = l.mask(1 << i);
         self.delta = if ds.delta {
             self.delta | bit
@@ -235,7 +235,7 @@ impl From<DirectionSample> for DirectionSamples<Scalar> {
             d: ds.d.into(),
             dist: ds.dist,
             pdf: ds.pdf,
-            radiance: ds.radiance.into(),
+            radiance: to_rgb(ds.radiance).into(),
             delta: ds.delta,
         }
     }

@@ -159,7 +159,6 @@ impl ProjectorEmitter {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::spectrum::Spectrum;
 
     /// A projector at height 1 over the plane z = 0 looking down, fov 90° (t = 1), square
     /// image: a white diffuse plane under it has radiance E (Mitsuba's normalisation), and
@@ -173,8 +172,9 @@ mod tests {
             glam::DVec4::new(0.0, 0.0, -1.0, 0.0),
             glam::DVec4::new(0.0, 0.0, 1.0, 1.0),
         );
-        let e = Spectrum::new(2.0, 3.0, 4.0);
-        let p = ProjectorEmitter::new(to_world, Texture::constant(e), 1.0, 90.0, 1.0).unwrap();
+        let e = crate::spectrum::rgb(2.0, 3.0, 4.0);
+        let p = ProjectorEmitter::new(to_world, Texture::constant(e.truncate()), 1.0, 90.0, 1.0)
+            .unwrap();
         let ds = p.sample_direction(Vec3::ZERO).unwrap();
         // Radiance of a white Lambertian plane: (1/π) cos θ · L.
         let radiance = ds.radiance * ds.d.z / std::f32::consts::PI;

@@ -22,7 +22,7 @@ use crate::integrator::{Integrator, PathStats};
 use crate::sampler::SampleStream;
 pub use crate::scene::description::AovKind;
 use crate::scene::Scene;
-use crate::spectrum::Spectrum;
+use crate::spectrum::{from_rgb, rgb, Spectrum};
 use glam::Vec3;
 
 #[derive(Clone, Debug)]
@@ -72,11 +72,12 @@ impl AovIntegrator {
             return Spectrum::ZERO;
         };
         match kind {
-            AovKind::Depth => Vec3::new(si.t * ray.d.length(), 0.0, 0.0),
-            AovKind::Position => si.p + self.world_origin,
-            AovKind::GeoNormal => si.ng,
-            AovKind::ShNormal => si.frame.n,
-            AovKind::Uv => Vec3::new(si.uv.x, si.uv.y, 0.0),
+            // Geometric AOVs: their three components as the (R, G, B) of a spectrum.
+            AovKind::Depth => rgb(si.t * ray.d.length(), 0.0, 0.0),
+            AovKind::Position => from_rgb(si.p + self.world_origin),
+            AovKind::GeoNormal => from_rgb(si.ng),
+            AovKind::ShNormal => from_rgb(si.frame.n),
+            AovKind::Uv => rgb(si.uv.x, si.uv.y, 0.0),
             AovKind::Albedo => {
                 let bsdf = scene.shading_bsdf(&si);
                 let wi = si.frame.to_local(-ray.d.normalize());

@@ -15,7 +15,7 @@ use crate::sampling::{mis_power, mis_power_lanes};
 use crate::scene::Scene;
 use crate::shape::{SurfaceInteraction, SurfaceInteractions};
 use crate::simd::{for_each_lane, LaneF32, LaneMask, LaneU32, Lanes, Scalar, V3};
-use crate::spectrum::Spectrum;
+use crate::spectrum::{from_rgb, to_rgb, Spectrum};
 use glam::Vec3;
 
 #[derive(Clone, Debug)]
@@ -79,7 +79,7 @@ impl PathIntegrator {
                 }
             }
         }
-        st.result.into()
+        from_rgb(st.result.into())
     }
 
     /// The state of a path whose camera ray is `ray`; `None` when `max_depth` is 0 (the path
@@ -91,8 +91,8 @@ impl PathIntegrator {
         }
         Some(PathState {
             ray: ray.into(),
-            throughput: Spectrum::ONE.into(),
-            result: Spectrum::ZERO.into(),
+            throughput: Vec3::ONE.into(),
+            result: Vec3::ZERO.into(),
             eta: 1.0,
             depth: 0,
             prev_p: ray.o.into(),
@@ -109,13 +109,14 @@ impl PathIntegrator {
         if scene.environment.is_some() && !(st.depth == 0 && self.hide_emitters) {
             let d = Vec3::from(st.ray.d);
             let le = scene.eval_environment(d);
-            if le != Vec3::ZERO {
+            if le != Spectrum::ZERO {
                 let w = if st.prev_delta {
                     1.0
                 } else {
                     mis_power(st.prev_bsdf_pdf, scene.pdf_environment(d))
                 };
-                st.result = (Vec3::from(st.result) + Vec3::from(st.throughput) * le * w).into();
+                st.result =
+                    (Vec3::from(st.result) + Vec3::from(st.throughput) * to_rgb(le) * w).into();
             }
         }
     }
@@ -143,9 +144,9 @@ impl PathIntegrator {
             }
             let le = match &scene.emitters[e as usize] {
                 crate::emitter::Emitter::Area(area) => area.eval(si, wi_world, &scene.shapes),
-                _ => Vec3::ZERO,
+                _ => Spectrum::ZERO,
             };
-            if le != Vec3::ZERO {
+            if le != Spectrum::ZERO {
                 let w = if st.prev_delta {
                     1.0
                 } else {
@@ -154,7 +155,8 @@ impl PathIntegrator {
                         scene.pdf_emitter_direction(st.prev_p.into(), si),
                     )
                 };
-                st.result = (Vec3::from(st.result) + Vec3::from(st.throughput) * le * w).into();
+                st.result =
+                    (Vec3::from(st.result) + Vec3::from(st.throughput) * to_rgb(le) * w).into();
             }
         }
         if st.depth.saturating_add(1) >= self.max_depth {
@@ -280,7 +282,7 @@ impl PathIntegrator {
                 let f_i = bsdf.eval(wi.lane(i), wo.lane(i));
                 if f_i != Spectrum::ZERO {
                     lit |= 1 << i;
-                    f.set_lane(i, f_i);
+                    f.set_lane(i, to_rgb(f_i));
                 }
             },
         );
@@ -350,7 +352,7 @@ impl PathIntegrator {
                 if let Some(bs) = bsdf.sample(wi.lane(i), u1, u2) {
                     go |= 1 << i;
                     wo.set_lane(i, bs.wo);
-                    weight.set_lane(i, bs.weight);
+                    weight.set_lane(i, to_rgb(bs.weight));
                     pdf.set_lane(i, bs.pdf);
                     eta.set_lane(i, bs.eta);
                     delta |= (bs.delta as u32) << i;

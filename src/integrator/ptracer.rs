@@ -453,7 +453,7 @@ mod tests {
     #[test]
     fn corrected_importance_matches_radiance_per_geometric_cosine() {
         let mut bsdf = ShadingBsdf::leaf(Bsdf::Diffuse(Diffuse {
-            reflectance: Vec3::new(0.7, 0.5, 0.3),
+            reflectance: crate::spectrum::rgb(0.7, 0.5, 0.3),
         }));
         let radiance = bsdf.clone();
         bsdf.set_importance();

@@ -52,6 +52,7 @@ use crate::sampler::SampleStream;
 use crate::sampling::Distribution1D;
 use crate::scene::Scene;
 use crate::shape::SurfaceInteraction;
+use crate::spectrum::to_rgb;
 use glam::{Vec2, Vec3};
 use rayon::prelude::*;
 use std::time::Instant;
@@ -570,7 +571,7 @@ impl Sppm {
             }
             for i in 0..n {
                 if lds[i].is_finite() {
-                    ld[i] += lds[i].as_dvec3();
+                    ld[i] += to_rgb(lds[i]).as_dvec3();
                 } else {
                     stats.nonfinite += 1;
                 }
@@ -613,7 +614,7 @@ impl Sppm {
                 for (deposits, st) in results {
                     stats.path += st;
                     for (k, v) in deposits {
-                        phi[k as usize] += v.as_dvec3();
+                        phi[k as usize] += to_rgb(v).as_dvec3();
                         m[k as usize] += 1;
                     }
                 }
@@ -630,7 +631,7 @@ impl Sppm {
                     radius[i],
                     tau[i],
                     m[i],
-                    vp.beta.as_dvec3() * phi[i],
+                    to_rgb(vp.beta).as_dvec3() * phi[i],
                     self.alpha as f64,
                 );
             }

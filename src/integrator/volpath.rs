@@ -34,7 +34,7 @@ use crate::sampler::SampleStream;
 use crate::sampling::mis_power;
 use crate::scene::Scene;
 use crate::shape::SurfaceInteraction;
-use crate::spectrum::Spectrum;
+use crate::spectrum::{from_rgb, to_rgb, Spectrum};
 use glam::Vec3;
 
 #[derive(Clone, Debug)]
@@ -204,7 +204,10 @@ pub(crate) fn trace_shadow<W: ShadowWeights>(
         };
         total += si.t;
         let bsdf = scene.shading_bsdf(&si);
-        w.surface(bsdf.null_transmission(si.frame.to_local(-ray.d)), channel);
+        w.surface(
+            to_rgb(bsdf.null_transmission(si.frame.to_local(-ray.d))),
+            channel,
+        );
         if w.is_zero() {
             return;
         }
@@ -262,7 +265,7 @@ impl VolPathIntegrator {
         if tr.is_zero() {
             return None;
         }
-        Some((tr.0 * ds.radiance / ds.pdf, ds))
+        Some((from_rgb(tr.0) * ds.radiance / ds.pdf, ds))
     }
 
     pub fn li(
@@ -288,7 +291,7 @@ impl VolPathIntegrator {
         let mut bsdf_buf = ShadingBsdf::new();
         loop {
             // Russian roulette and the depth limit.
-            if throughput == Vec3::ZERO || !throughput.is_finite() {
+            if throughput == Spectrum::ZERO || !throughput.is_finite() {
                 break;
             }
             if depth > self.rr_depth {
@@ -319,16 +322,16 @@ impl VolPathIntegrator {
                 );
                 let (tr, pdf) = Medium::transmittance_eval_pdf(&mi, si_t);
                 let tr_pdf = channel_of(pdf, channel);
-                throughput *= if tr_pdf > 0.0 {
+                throughput *= from_rgb(if tr_pdf > 0.0 {
                     tr / tr_pdf
                 } else {
                     Vec3::ZERO
-                };
+                });
                 if mi.is_valid() {
                     let null_prob = mean3(safe_div3(mi.sigma_n, mi.combined_extinction));
                     if sampler.next_1d() < null_prob {
                         // A null collision: continue along the ray from there.
-                        throughput *= mi.sigma_n / null_prob;
+                        throughput *= from_rgb(mi.sigma_n / null_prob);
                         pass_collision(&mut ray, &mut hit, &mi);
                         continue;
                     }
@@ -338,7 +341,8 @@ impl VolPathIntegrator {
                         break;
                     }
                     stats.bounces += 1;
-                    throughput *= mi.sigma_s / mean3(safe_div3(mi.sigma_t, mi.combined_extinction));
+                    throughput *=
+                        from_rgb(mi.sigma_s / mean3(safe_div3(mi.sigma_t, mi.combined_extinction)));
                     last_scatter_p = mi.p;
                     specular_chain = !med.sample_emitters;
                     if med.sample_emitters {
@@ -385,7 +389,7 @@ impl VolPathIntegrator {
             }
             if !(depth == 0 && self.hide_emitters) {
                 let le = emission_at(scene, si.as_ref(), ray.d);
-                if le != Vec3::ZERO {
+                if le != Spectrum::ZERO {
                     let count_direct = depth == 0 || specular_chain;
                     let w = if count_direct {
                         1.0
@@ -416,7 +420,7 @@ impl VolPathIntegrator {
                 ) {
                     let wo = si.frame.to_local(ds.d);
                     let f = bsdf.eval(wi, wo);
-                    if f != Vec3::ZERO {
+                    if f != Spectrum::ZERO {
                         let w = if ds.delta {
                             1.0
                         } else {

@@ -35,7 +35,7 @@ use crate::medium::{mean3, safe_div3, Medium, MediumInteraction};
 use crate::sampler::SampleStream;
 use crate::scene::Scene;
 use crate::shape::SurfaceInteraction;
-use crate::spectrum::Spectrum;
+use crate::spectrum::{from_rgb, to_rgb, Spectrum};
 use glam::Vec3;
 
 #[derive(Clone, Debug)]
@@ -290,7 +290,7 @@ impl VolPathMisIntegrator {
                             nee_end.update(Vec3::ONE, pv, channel);
                             let p = if ds.delta { 0.0 } else { phase_val };
                             uni_end.update(Vec3::splat(p), pv, channel);
-                            result += nee_end.weight2(&uni_end) * emitted;
+                            result += from_rgb(nee_end.weight2(&uni_end)) * emitted;
                         }
                     }
                     p_over_f_nee = p_over_f;
@@ -319,7 +319,7 @@ impl VolPathMisIntegrator {
             }
             if !(depth == 0 && self.hide_emitters) {
                 let le = emission_at(scene, si.as_ref(), ray.d);
-                if le != Vec3::ZERO {
+                if le != Spectrum::ZERO {
                     let count_direct = depth == 0 || specular_chain;
                     let w = if count_direct {
                         p_over_f.weight()
@@ -328,7 +328,7 @@ impl VolPathMisIntegrator {
                         p_over_f_nee.update(Vec3::splat(pdf), Vec3::ONE, channel);
                         p_over_f.weight2(&p_over_f_nee)
                     };
-                    result += w * le;
+                    result += from_rgb(w) * le;
                 }
             }
             let Some(si) = si else {
@@ -350,11 +350,12 @@ impl VolPathMisIntegrator {
                 ) {
                     let wo = si.frame.to_local(ds.d);
                     let f = bsdf.eval(wi, wo);
-                    if f != Vec3::ZERO {
+                    if f != Spectrum::ZERO {
+                        let f = to_rgb(f);
                         nee_end.update(Vec3::ONE, f, channel);
                         let p = if ds.delta { 0.0 } else { bsdf.pdf(wi, wo) };
                         uni_end.update(Vec3::splat(p), f, channel);
-                        result += nee_end.weight2(&uni_end) * emitted;
+                        result += from_rgb(nee_end.weight2(&uni_end)) * emitted;
                     }
                 }
             }
@@ -372,7 +373,7 @@ impl VolPathMisIntegrator {
             let wo_world = si.frame.to_world(bs.wo).normalize();
             ray = Scene::spawn_ray(&si, wo_world);
             hit = None;
-            let f = bs.weight * bs.pdf;
+            let f = to_rgb(bs.weight * bs.pdf);
             if !bs.null {
                 depth += 1;
                 stats.bounces += 1;

@@ -30,6 +30,7 @@ pub use shading::{Node, ShadingBsdf, MAX_NODES};
 
 use crate::bsdf::{Bsdf, BsdfParam};
 use crate::geometry::Frame;
+use crate::spectrum::Spectrum;
 use crate::texture::{Texture, TextureContext};
 use glam::Vec3;
 
@@ -180,9 +181,9 @@ impl Material {
 
 /// A texture-driven parameter's value: the colour, or one value (`eval_1`) splatted.
 #[inline]
-fn lookup(param: BsdfParam, tex: &Texture, ctx: &ShadingContext) -> Vec3 {
+fn lookup(param: BsdfParam, tex: &Texture, ctx: &ShadingContext) -> Spectrum {
     if param.is_scalar() {
-        Vec3::splat(tex.eval_1(&ctx.tex))
+        Spectrum::splat(tex.eval_1(&ctx.tex))
     } else {
         tex.eval(&ctx.tex)
     }

@@ -18,6 +18,7 @@ use crate::shape::{Shape, SurfaceInteraction};
 use crate::simd::{
     for_each_distinct, for_each_lane, LaneF32, LaneMask, LaneU32, Lanes, Scalar, V3,
 };
+use crate::spectrum::Spectrum;
 use crate::texture::TextureContext;
 use glam::{Vec2, Vec3};
 use std::path::Path;
@@ -495,10 +496,10 @@ impl Scene {
 
     /// Radiance of the environment emitter arriving along −`d` (0 without one).
     #[inline]
-    pub fn eval_environment(&self, d: Vec3) -> Vec3 {
+    pub fn eval_environment(&self, d: Vec3) -> Spectrum {
         match self.environment {
             Some(e) => self.emitters[e as usize].eval_environment(d.normalize()),
-            None => Vec3::ZERO,
+            None => Spectrum::ZERO,
         }
     }
 
@@ -584,7 +585,7 @@ mod tests {
                         d,
                         dist,
                         pdf,
-                        radiance: *rgb,
+                        radiance: crate::spectrum::from_rgb(*rgb),
                         delta: false,
                     }
                 }
@@ -728,7 +729,16 @@ mod tests {
                     let key = |x: &Option<(DirectionSample, Ray)>| {
                         x.map(|(ds, r)| {
                             (
-                                [ds.p, ds.p_error, ds.n, ds.d, ds.radiance, r.o, r.d].map(bits),
+                                [
+                                    ds.p,
+                                    ds.p_error,
+                                    ds.n,
+                                    ds.d,
+                                    crate::spectrum::to_rgb(ds.radiance),
+                                    r.o,
+                                    r.d,
+                                ]
+                                .map(bits),
                                 [ds.dist, ds.pdf, r.tmax].map(f32::to_bits),
                                 ds.delta,
                             )

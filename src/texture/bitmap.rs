@@ -363,7 +363,7 @@ impl TexImage {
 
 #[inline]
 fn luminance(c: [f32; 3]) -> f32 {
-    crate::spectrum::luminance(glam::Vec3::from_array(c))
+    crate::spectrum::luminance_rgb(glam::Vec3::from_array(c))
 }
 
 /// a·b + c rounded once, as a fused multiply-add (the product of two f32 is exact in f64;

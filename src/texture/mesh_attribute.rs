@@ -20,7 +20,7 @@
 //! ```
 
 use super::TextureContext;
-use crate::spectrum::Spectrum;
+use glam::Vec3;
 
 #[derive(Clone, Debug)]
 pub struct MeshAttributeTexture {
@@ -32,17 +32,17 @@ pub struct MeshAttributeTexture {
 impl MeshAttributeTexture {
     /// The attribute's value at the shading point, as many channels as it has (1 or 3).
     #[inline]
-    fn value(&self, ctx: &TextureContext) -> Option<(Spectrum, usize)> {
+    fn value(&self, ctx: &TextureContext) -> Option<(Vec3, usize)> {
         let mesh = ctx.mesh?;
         mesh.eval_attribute(&self.name, ctx.prim as usize, ctx.bary)
     }
 
     #[inline]
-    pub fn eval(&self, ctx: &TextureContext) -> Spectrum {
+    pub fn eval(&self, ctx: &TextureContext) -> Vec3 {
         match self.value(ctx) {
-            Some((v, 1)) => Spectrum::splat(v.x) * self.scale,
+            Some((v, 1)) => Vec3::splat(v.x) * self.scale,
             Some((v, _)) => v * self.scale,
-            None => Spectrum::ZERO,
+            None => Vec3::ZERO,
         }
     }
 

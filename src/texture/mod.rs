@@ -27,7 +27,7 @@ pub use mesh_attribute::MeshAttributeTexture;
 pub use volume::VolumeTexture;
 
 use crate::shape::Mesh;
-use crate::spectrum::Spectrum;
+use crate::spectrum::{from_rgb, to_rgb, Spectrum};
 use glam::{DMat3, Vec2, Vec3};
 
 /// What a texture lookup needs of the shading point: the surface coordinates, the position
@@ -65,7 +65,7 @@ pub enum Texture {
     /// of a `<float>`, the mean of an `<rgb>`), `raw` for `eval_3` (a `rawconstant`'s vector;
     /// otherwise `rgb`).
     Constant {
-        rgb: Spectrum,
+        rgb: Vec3,
         scalar: f32,
     },
     Bitmap(BitmapTexture),
@@ -76,7 +76,7 @@ pub enum Texture {
 
 impl Texture {
     /// A constant colour (Mitsuba's `srgb` texture: `eval_1` is the mean of the channels).
-    pub fn constant(rgb: Spectrum) -> Self {
+    pub fn constant(rgb: Vec3) -> Self {
         Texture::Constant {
             rgb,
             scalar: (rgb.x + rgb.y + rgb.z) / 3.0,
@@ -87,11 +87,11 @@ impl Texture {
     #[inline]
     pub fn eval(&self, ctx: &TextureContext) -> Spectrum {
         match self {
-            Texture::Constant { rgb, .. } => *rgb,
-            Texture::Bitmap(b) => b.eval(ctx.uv),
+            Texture::Constant { rgb, .. } => from_rgb(*rgb),
+            Texture::Bitmap(b) => from_rgb(b.eval(ctx.uv)),
             Texture::Checkerboard(c) => c.eval(ctx),
-            Texture::MeshAttribute(a) => a.eval(ctx),
-            Texture::Volume(v) => v.eval(ctx.p),
+            Texture::MeshAttribute(a) => from_rgb(a.eval(ctx)),
+            Texture::Volume(v) => from_rgb(v.eval(ctx.p)),
         }
     }
 
@@ -113,7 +113,7 @@ impl Texture {
         match self {
             Texture::Constant { rgb, .. } => *rgb,
             Texture::Bitmap(b) => b.eval(ctx.uv),
-            Texture::Checkerboard(c) => c.eval(ctx),
+            Texture::Checkerboard(c) => to_rgb(c.eval(ctx)),
             Texture::MeshAttribute(a) => a.eval(ctx),
             Texture::Volume(v) => v.eval(ctx.p),
         }

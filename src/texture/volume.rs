@@ -22,8 +22,7 @@
 //! </texture>
 //! ```
 
-use crate::spectrum::luminance;
-use crate::spectrum::Spectrum;
+use crate::spectrum::luminance_rgb as luminance;
 use crate::volume::Volume;
 use glam::Vec3;
 use std::sync::Arc;
@@ -48,7 +47,7 @@ impl VolumeTexture {
 
     /// The colour at point `p` (camera-relative world space, as the scene is built).
     #[inline]
-    pub fn eval(&self, p: Vec3) -> Spectrum {
+    pub fn eval(&self, p: Vec3) -> Vec3 {
         self.volume.eval(p)
     }
 

@@ -27,7 +27,7 @@ use crate::scene::Scene;
 use crate::shape::{triangle_interactions, ShapeGeometry, SurfaceInteractions, TriangleLanes};
 use crate::simd::MAX_WIDTH;
 use crate::simd::{dispatch, Backend, LaneF32, LaneMask, LaneProgram, LaneU32, Lanes, V3};
-use crate::spectrum::Spectrum;
+use crate::spectrum::{from_rgb, Spectrum};
 use glam::Vec2;
 
 /// One camera sample: its sample stream (past the camera's dimensions), its film position
@@ -229,11 +229,11 @@ fn trace_queue<L: Lanes>(
             match &hits[i] {
                 None => {
                     path.escape(scene, &mut st);
-                    p.finish(i, st.result.into(), out);
+                    p.finish(i, from_rgb(st.result.into()), out);
                 }
                 Some(_) => match path.at_surface(scene, &mut st, sis.shape.lane(i), || sis.lane(i))
                 {
-                    SurfaceStep::End => p.finish(i, st.result.into(), out),
+                    SurfaceStep::End => p.finish(i, from_rgb(st.result.into()), out),
                     SurfaceStep::Trace => p.st.put(l, i, &st),
                     SurfaceStep::Scatter { wi_world } => {
                         p.st.put(l, i, &st);
@@ -264,7 +264,7 @@ fn trace_queue<L: Lanes>(
             &mut bsdf_bufs,
         );
         for i in lanes_of(scatter.and_not(go).bits()) {
-            p.finish(i, p.st.result.lane(i), out);
+            p.finish(i, from_rgb(p.st.result.lane(i)), out);
         }
     }
 }

@@ -28,6 +28,7 @@ use crate::phase::{HenyeyGreenstein, PhaseFunction};
 use crate::sampler::Sampler;
 use crate::sampling::Distribution1D;
 use crate::shape::{Cylinder, Disk, Mesh, SdfGrid, Shape, ShapeGeometry, Sphere};
+use crate::spectrum::from_rgb_f64;
 use crate::texture::bitmap::Wrap;
 use crate::volume::{constant::ConstVolume, GridVolume, Volume};
 use glam::{DMat3, DMat4, DVec3, Vec2, Vec3};
@@ -398,7 +399,7 @@ fn scene_emitter(
             intensity,
         } => Emitter::Point(PointEmitter {
             position: shift.transform_point3(*position).as_vec3(),
-            intensity: intensity.rgb.as_vec3(),
+            intensity: from_rgb_f64(intensity.rgb),
         }),
         EmitterDesc::Spot {
             to_world,
@@ -414,7 +415,7 @@ fn scene_emitter(
             Emitter::Spot(
                 SpotEmitter::new(
                     shift * *to_world,
-                    intensity.rgb.as_vec3(),
+                    from_rgb_f64(intensity.rgb),
                     *cutoff_angle,
                     *beam_width,
                     texture,
@@ -453,10 +454,10 @@ fn scene_emitter(
             irradiance,
         } => Emitter::Directional(DirectionalEmitter {
             direction: direction.as_vec3(),
-            irradiance: irradiance.rgb.as_vec3(),
+            irradiance: from_rgb_f64(irradiance.rgb),
         }),
         EmitterDesc::Constant { radiance } => Emitter::Constant(ConstantEmitter {
-            radiance: radiance.rgb.as_vec3(),
+            radiance: from_rgb_f64(radiance.rgb),
         }),
         EmitterDesc::EnvMap {
             filename,
