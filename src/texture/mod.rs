@@ -18,11 +18,13 @@
 
 pub mod bitmap;
 pub mod checkerboard;
+pub mod color;
 pub mod mesh_attribute;
 pub mod volume;
 
 pub use bitmap::BitmapTexture;
 pub use checkerboard::Checkerboard;
+pub use color::ColorValue;
 pub use mesh_attribute::MeshAttributeTexture;
 pub use volume::VolumeTexture;
 
@@ -43,6 +45,8 @@ pub struct TextureContext<'a> {
     pub bary: Vec2,
     /// The mesh hit, if it is one.
     pub mesh: Option<&'a Mesh>,
+    /// The path's four wavelengths (nm) in spectral mode (ignored in RGB mode).
+    pub wavelengths: glam::Vec4,
 }
 
 impl TextureContext<'_> {
@@ -54,6 +58,7 @@ impl TextureContext<'_> {
             prim: 0,
             bary: Vec2::ZERO,
             mesh: None,
+            wavelengths: glam::Vec4::ZERO,
         }
     }
 }
@@ -67,6 +72,14 @@ pub enum Texture {
     Constant {
         rgb: Vec3,
         scalar: f32,
+    },
+    /// Spectral mode's constant: a spectrum evaluated at the path's wavelengths, `scalar` for
+    /// `eval_1` (Mitsuba's `mean()` of the spectrum), `rgb` for `eval_3` (Mitsuba's `srgb`
+    /// keeps its colour there).
+    Spectral {
+        value: Box<ColorValue>,
+        scalar: f32,
+        rgb: Vec3,
     },
     Bitmap(BitmapTexture),
     Checkerboard(Box<Checkerboard>),
@@ -88,6 +101,7 @@ impl Texture {
     pub fn eval(&self, ctx: &TextureContext) -> Spectrum {
         match self {
             Texture::Constant { rgb, .. } => from_rgb(*rgb),
+            Texture::Spectral { value, .. } => value.eval(ctx.wavelengths),
             Texture::Bitmap(b) => from_rgb(b.eval(ctx.uv)),
             Texture::Checkerboard(c) => c.eval(ctx),
             Texture::MeshAttribute(a) => from_rgb(a.eval(ctx)),
@@ -99,7 +113,7 @@ impl Texture {
     #[inline]
     pub fn eval_1(&self, ctx: &TextureContext) -> f32 {
         match self {
-            Texture::Constant { scalar, .. } => *scalar,
+            Texture::Constant { scalar, .. } | Texture::Spectral { scalar, .. } => *scalar,
             Texture::Bitmap(b) => b.eval_1(ctx.uv),
             Texture::Checkerboard(c) => c.eval_1(ctx),
             Texture::MeshAttribute(a) => a.eval_1(ctx),
@@ -111,7 +125,7 @@ impl Texture {
     #[inline]
     pub fn eval_3(&self, ctx: &TextureContext) -> Vec3 {
         match self {
-            Texture::Constant { rgb, .. } => *rgb,
+            Texture::Constant { rgb, .. } | Texture::Spectral { rgb, .. } => *rgb,
             Texture::Bitmap(b) => b.eval(ctx.uv),
             Texture::Checkerboard(c) => to_rgb(c.eval(ctx)),
             Texture::MeshAttribute(a) => a.eval(ctx),
@@ -128,6 +142,7 @@ impl Texture {
             Texture::Bitmap(b) => b.eval_1_grad(ctx.uv),
             // Mitsuba's volume texture has no uv gradient either.
             Texture::Constant { .. }
+            | Texture::Spectral { .. }
             | Texture::Checkerboard(_)
             | Texture::MeshAttribute(_)
             | Texture::Volume(_) => Vec2::ZERO,
@@ -137,7 +152,7 @@ impl Texture {
     /// The mean over the texture's domain (Mitsuba's `mean`).
     pub fn mean(&self) -> f32 {
         match self {
-            Texture::Constant { scalar, .. } => *scalar,
+            Texture::Constant { scalar, .. } | Texture::Spectral { scalar, .. } => *scalar,
             Texture::Bitmap(b) => b.mean(),
             Texture::Checkerboard(c) => c.mean(),
             // Mitsuba has no mean for an attribute; its constant scale is what is known.
