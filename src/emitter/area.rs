@@ -64,6 +64,8 @@ fn texture_context<'a>(si: &SurfaceInteraction, geometry: &'a ShapeGeometry) -> 
             ShapeGeometry::Mesh(m) => Some(m),
             _ => None,
         },
+        // WIP (issue 43): the path's wavelengths are not threaded here yet.
+        wavelengths: glam::Vec4::ZERO,
     }
 }
 

@@ -278,6 +278,8 @@ impl Scene {
                 prim: si.prim,
                 bary: si.bary,
                 mesh,
+                // WIP (issue 43): the path's wavelengths are not threaded here yet.
+                wavelengths: glam::Vec4::ZERO,
             },
             frame: si.frame,
             dp_du: si.dp_du,
