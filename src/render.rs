@@ -19,6 +19,7 @@ use crate::scene::description::SceneDescription;
 use crate::scene::Scene;
 use crate::simd::Backend;
 use crate::spectrum::to_rgb;
+use crate::spectrum::{from_rgb, Mode, NO_WAVELENGTHS};
 use glam::Vec2;
 use rayon::prelude::*;
 use std::sync::atomic::{AtomicU64, Ordering};
@@ -38,6 +39,12 @@ impl Job {
     pub fn build(desc: &SceneDescription) -> Result<Job> {
         let scene = crate::scene::build::build(desc)?;
         let integrator = Integrator::build(&desc.integrator, &scene)?;
+        if scene.mode == Mode::Spectral && !integrator.supports_spectral() {
+            return Err(Error::Invalid(format!(
+                "spectral mode renders with the path and direct integrators so far (issue 43); {} renders in RGB mode only",
+                integrator.name()
+            )));
+        }
         Ok(Job {
             scene,
             integrator,
@@ -96,6 +103,9 @@ pub enum EngineRan {
     /// The lane engine was asked for, but does not cover this integrator (named): the
     /// scalar engine ran.
     ScalarFallback(&'static str),
+    /// The lane engine was asked for in spectral mode, which it does not render yet: the
+    /// scalar engine ran.
+    ScalarSpectral,
 }
 
 impl std::fmt::Display for EngineRan {
@@ -103,6 +113,9 @@ impl std::fmt::Display for EngineRan {
         match self {
             EngineRan::Scalar => write!(f, "scalar"),
             EngineRan::Lanes(b) => write!(f, "lanes ({b}, {} wide)", b.width()),
+            EngineRan::ScalarSpectral => {
+                write!(f, "scalar (the lane engine renders RGB mode only so far)")
+            }
             EngineRan::ScalarFallback(name) => write!(
                 f,
                 "scalar (the lane engine covers the path integrator, not {name})"
@@ -114,9 +127,10 @@ impl std::fmt::Display for EngineRan {
 impl Engine {
     /// What a render of `integrator` on this engine runs on; an error if a lane backend
     /// was named that this processor does not run.
-    pub fn resolve(self, integrator: &Integrator) -> Result<EngineRan> {
+    pub fn resolve(self, integrator: &Integrator, mode: Mode) -> Result<EngineRan> {
         Ok(match (self, integrator) {
             (Engine::Scalar, _) => EngineRan::Scalar,
+            (Engine::Lanes(_), _) if mode == Mode::Spectral => EngineRan::ScalarSpectral,
             (Engine::Lanes(backend), Integrator::Path(_)) => {
                 let b = backend.unwrap_or_else(Backend::best);
                 if !b.supported() {
@@ -298,7 +312,19 @@ fn render_tile(
         for x in x0..x0 + w as i64 {
             for s in 0..settings.spp as u64 {
                 let (mut stream, pos, ray) = camera_sample(scene, sampler, settings, (x, y), s);
-                let l = integrator.li(scene, ray, &mut stream, &mut r.stats);
+                let l = match scene.mode {
+                    Mode::Rgb => {
+                        integrator.li(scene, ray, NO_WAVELENGTHS, &mut stream, &mut r.stats)
+                    }
+                    Mode::Spectral => {
+                        // Mitsuba's spectral variants: four wavelengths per path from one
+                        // sample, the film's linear sRGB of the path's values times their
+                        // weights (1 / pdf).
+                        let (wl, weight) = crate::spectral::sample_wavelengths(stream.next_1d());
+                        let l = integrator.li(scene, ray, wl, &mut stream, &mut r.stats);
+                        from_rgb(crate::spectral::spectrum_to_srgb(l * weight, wl))
+                    }
+                };
                 r.add((x, y), pos, l, (width, height));
             }
         }
@@ -340,7 +366,7 @@ pub fn render_with(
     settings: &RenderSettings,
     progress: &(dyn Fn(u64, u64) + Sync),
 ) -> Result<RenderOutput> {
-    let engine = engine.resolve(integrator)?;
+    let engine = engine.resolve(integrator, scene.mode)?;
     let pool = thread_pool(settings.threads)?;
     match integrator {
         Integrator::ParticleTracer(pt) => {

@@ -53,6 +53,10 @@ use glam::DVec3;
 /// paths carry four wavelengths: a spectral mode will fill the lanes with those.
 pub type Spectrum = glam::Vec4;
 
+/// The wavelengths handed to shading and emitters by the integrators that render in RGB
+/// mode only (they are refused in spectral mode, where a path carries its own four).
+pub const NO_WAVELENGTHS: glam::Vec4 = glam::Vec4::ZERO;
+
 /// What a render's [`Spectrum`] lanes hold: Mitsuba's `*_rgb` or `*_spectral` variants.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
 pub enum Mode {

@@ -39,6 +39,12 @@ pub(crate) struct RenderArgs {
     /// hide_emitters.
     #[arg(long, value_name = "NAME")]
     integrator: Option<String>,
+    /// `rgb` (default) renders linear sRGB as Mitsuba's `*_rgb` variants; `spectral` carries
+    /// four wavelengths per path and converts them to linear sRGB as Mitsuba's `*_spectral`
+    /// variants (`<spectrum>` values kept as spectra, RGB reflectances upsampled; path and
+    /// direct integrators, no bitmaps, environment maps or media yet).
+    #[arg(long, value_enum, default_value_t = ModeArg::Rgb)]
+    mode: ModeArg,
     /// Render the scene's sensor number N (from 0, in file order) instead of the first, which
     /// is the one Mitsuba renders.
     #[arg(long, value_name = "N")]
@@ -117,6 +123,21 @@ pub(crate) struct RenderArgs {
     /// up to --spp, to be merged with that render's parts.
     #[arg(long, value_name = "SPP", requires = "part", default_value_t = 0)]
     start_spp: u64,
+}
+
+#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
+enum ModeArg {
+    Rgb,
+    Spectral,
+}
+
+impl From<ModeArg> for penumbra::spectrum::Mode {
+    fn from(m: ModeArg) -> Self {
+        match m {
+            ModeArg::Rgb => penumbra::spectrum::Mode::Rgb,
+            ModeArg::Spectral => penumbra::spectrum::Mode::Spectral,
+        }
+    }
 }
 
 #[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
@@ -291,10 +312,11 @@ pub(crate) fn run_render(args: RenderArgs) -> Result<()> {
     if let Some(kind) = &args.integrator {
         desc.use_integrator(kind)?;
     }
+    desc.mode = args.mode.into();
     let mut job = Job::build(&desc)?;
     job.engine = engine(&args)?;
     // (fails here, before any work, if a named lane backend cannot run)
-    let engine_ran = job.engine.resolve(&job.integrator)?;
+    let engine_ran = job.engine.resolve(&job.integrator, job.scene.mode)?;
     for w in &job.scene.warnings {
         eprintln!("warning: {w}");
     }

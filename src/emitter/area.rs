@@ -19,10 +19,10 @@ use crate::sampling::{square_to_cosine_hemisphere, square_to_uniform_cone};
 use crate::shape::{
     Mesh, PositionSamples, Shape, ShapeGeometry, Sphere, SurfaceInteraction, UvGrid,
 };
-use crate::simd::{LaneF32, Lanes, Scalar, V3};
+use crate::simd::{LaneF32, Lanes, Scalar, V3, V4};
 use crate::spectrum::{from_rgb, Spectrum};
 use crate::texture::{Texture, TextureContext};
-use glam::{DVec3, Vec2, Vec3};
+use glam::{DVec3, Vec2, Vec3, Vec4};
 
 #[derive(Clone, Debug)]
 pub struct AreaEmitter {
@@ -54,7 +54,11 @@ fn sphere_cone(s: &Sphere, p_ref: Vec3) -> Option<(DVec3, f64, f64, f64)> {
 }
 
 /// The radiance texture's lookup context at `si` on `geometry`.
-fn texture_context<'a>(si: &SurfaceInteraction, geometry: &'a ShapeGeometry) -> TextureContext<'a> {
+fn texture_context<'a>(
+    si: &SurfaceInteraction,
+    geometry: &'a ShapeGeometry,
+    wl: Vec4,
+) -> TextureContext<'a> {
     TextureContext {
         uv: si.uv,
         p: si.p,
@@ -64,8 +68,7 @@ fn texture_context<'a>(si: &SurfaceInteraction, geometry: &'a ShapeGeometry) -> 
             ShapeGeometry::Mesh(m) => Some(m),
             _ => None,
         },
-        // WIP (issue 43): the path's wavelengths are not threaded here yet.
-        wavelengths: glam::Vec4::ZERO,
+        wavelengths: wl,
     }
 }
 
@@ -77,7 +80,7 @@ fn by_area_lanes<L: Lanes>(
     mesh: &Mesh,
     p_ref: V3<L::F>,
     u: (L::F, L::F),
-    radiance: V3<L::F>,
+    radiance: V4<L::F>,
 ) -> (L::M, DirectionSamples<L>) {
     let (ok, ps) = mesh.sample_position_lanes(l, m, u.0, u.1);
     to_solid_angle_lanes(l, ok, &ps, p_ref, radiance)
@@ -94,7 +97,7 @@ fn to_solid_angle_lanes<L: Lanes>(
     m: L::M,
     ps: &PositionSamples<L>,
     p_ref: V3<L::F>,
-    radiance: V3<L::F>,
+    radiance: V4<L::F>,
 ) -> (L::M, DirectionSamples<L>) {
     let zero = l.splat(0.0);
     let v = ps.p - p_ref;
@@ -130,10 +133,10 @@ impl AreaEmitter {
     pub fn new(shape: u32, radiance: Texture, shapes: &[Shape]) -> Option<Self> {
         let uv_grid = match (
             &shapes.get(shape as usize)?.geometry,
-            radiance.is_constant(),
+            radiance.is_spatially_varying(),
         ) {
-            (ShapeGeometry::Mesh(m), false) => Some(UvGrid::new(m)?),
-            (ShapeGeometry::SdfGrid(_), false) => return None,
+            (ShapeGeometry::Mesh(m), true) => Some(UvGrid::new(m)?),
+            (ShapeGeometry::SdfGrid(_), true) => return None,
             _ => None,
         };
         Some(AreaEmitter {
@@ -146,13 +149,18 @@ impl AreaEmitter {
     /// Radiance leaving the surface at `si` in direction `w` (world, pointing away from the
     /// surface).
     #[inline]
-    pub fn eval(&self, si: &SurfaceInteraction, w: Vec3, shapes: &[Shape]) -> Spectrum {
+    pub fn eval(&self, si: &SurfaceInteraction, w: Vec3, shapes: &[Shape], wl: Vec4) -> Spectrum {
         if si.frame.n.dot(w) <= 0.0 {
             return Spectrum::ZERO;
         }
         match &self.radiance {
             Texture::Constant { rgb, .. } => from_rgb(*rgb),
-            t => t.eval(&texture_context(si, &shapes[self.shape as usize].geometry)),
+            Texture::Spectral { value, .. } => value.eval(wl),
+            t => t.eval(&texture_context(
+                si,
+                &shapes[self.shape as usize].geometry,
+                wl,
+            )),
         }
     }
 
@@ -169,15 +177,33 @@ impl AreaEmitter {
         p_ref: Vec3,
         u: Vec2,
         shapes: &[Shape],
+        wl: Vec4,
     ) -> Option<DirectionSample> {
         let geometry = &shapes[self.shape as usize].geometry;
         let radiance = match &self.radiance {
-            Texture::Constant { rgb, .. } => *rgb,
-            _ => return self.sample_textured(p_ref, u, geometry),
+            Texture::Constant { rgb, .. } => from_rgb(*rgb),
+            Texture::Spectral { value, .. } => {
+                // Spectral mode: the constant's geometry with unit radiance, then the spectrum.
+                let mut ds = self.sample_constant(Spectrum::ONE, p_ref, u, geometry)?;
+                ds.radiance *= value.eval(wl);
+                return Some(ds);
+            }
+            _ => return self.sample_textured(p_ref, u, geometry, wl),
         };
+        self.sample_constant(radiance, p_ref, u, geometry)
+    }
+
+    /// [`AreaEmitter::sample_direction`] for a radiance that does not vary over the surface.
+    fn sample_constant(
+        &self,
+        radiance: Spectrum,
+        p_ref: Vec3,
+        u: Vec2,
+        geometry: &ShapeGeometry,
+    ) -> Option<DirectionSample> {
         if let ShapeGeometry::Sphere(s) = geometry {
             if let Some(cone) = sphere_cone(s, p_ref) {
-                return self.sample_sphere_cone(from_rgb(radiance), s, p_ref, u, cone);
+                return self.sample_sphere_cone(radiance, s, p_ref, u, cone);
             }
         }
         // Uniform by area, converted to solid angle: the width-1 instance of the lane
@@ -217,7 +243,12 @@ impl AreaEmitter {
     ) -> Option<(L::M, DirectionSamples<L>)> {
         match (&self.radiance, &shapes[self.shape as usize].geometry) {
             (Texture::Constant { rgb, .. }, ShapeGeometry::Mesh(mesh)) => {
-                let radiance = V3::new(l.splat(rgb.x), l.splat(rgb.y), l.splat(rgb.z));
+                let radiance = V4::new(
+                    l.splat(rgb.x),
+                    l.splat(rgb.y),
+                    l.splat(rgb.z),
+                    l.splat(rgb.y),
+                );
                 Some(by_area_lanes(l, m, mesh, p_ref, u, radiance))
             }
             _ => None,
@@ -231,6 +262,7 @@ impl AreaEmitter {
         p_ref: Vec3,
         u: Vec2,
         geometry: &ShapeGeometry,
+        wl: Vec4,
     ) -> Option<DirectionSample> {
         let (uv, pdf_uv) = self.radiance.sample_position(u);
         if pdf_uv.is_nan() || pdf_uv <= 0.0 {
@@ -247,7 +279,7 @@ impl AreaEmitter {
             return None;
         }
         let pdf = pdf_uv / jacobian * dist2 / cos_light;
-        let radiance = self.radiance.eval(&texture_context(&si, geometry));
+        let radiance = self.radiance.eval(&texture_context(&si, geometry, wl));
         (pdf.is_finite() && pdf > 0.0).then_some(DirectionSample {
             p: si.p,
             p_error: si.p_error,
@@ -307,17 +339,21 @@ impl AreaEmitter {
 
     /// A point on the emitter: uniform by area for a constant radiance, by the texture
     /// mapped onto the shape otherwise (as [`AreaEmitter::sample_direction`] does).
-    pub fn sample_position(&self, u: Vec2, shapes: &[Shape]) -> Option<EmitterPosition> {
+    pub fn sample_position(&self, u: Vec2, shapes: &[Shape], wl: Vec4) -> Option<EmitterPosition> {
         let geometry = &shapes[self.shape as usize].geometry;
         let pos = match &self.radiance {
-            Texture::Constant { rgb, .. } => {
+            Texture::Constant { .. } | Texture::Spectral { .. } => {
                 let ps = geometry.sample_position(u)?;
+                let radiance = match &self.radiance {
+                    Texture::Constant { rgb, .. } => from_rgb(*rgb),
+                    t => t.eval(&TextureContext::at_uv_wl(Vec2::ZERO, wl)),
+                };
                 EmitterPosition {
                     p: ps.p,
                     p_error: ps.p_error,
                     n: ps.n,
                     ng: ps.n,
-                    radiance: from_rgb(*rgb),
+                    radiance,
                     pdf: ps.pdf,
                 }
             }
@@ -330,7 +366,7 @@ impl AreaEmitter {
                     p_error: si.p_error,
                     n: si.frame.n,
                     ng: si.ng,
-                    radiance: self.radiance.eval(&texture_context(&si, geometry)),
+                    radiance: self.radiance.eval(&texture_context(&si, geometry, wl)),
                     pdf: pdf_uv / jacobian,
                 }
             }
@@ -342,7 +378,7 @@ impl AreaEmitter {
     /// of the emitter's shape: uniform by area for a constant radiance, p_uv / |∂p/∂u ×
     /// ∂p/∂v| for a textured one.
     pub fn pdf_position(&self, si: &SurfaceInteraction, shapes: &[Shape]) -> f32 {
-        let pdf = if self.radiance.is_constant() {
+        let pdf = if !self.radiance.is_spatially_varying() {
             (1.0 / shapes[self.shape as usize].geometry.area()) as f32
         } else {
             let jacobian = si.dp_du.cross(si.dp_dv).length();
@@ -359,7 +395,7 @@ impl AreaEmitter {
     /// samples the cone a sphere subtends (a constant radiance on a sphere seen from
     /// outside); `None` where it samples by area ([`AreaEmitter::pdf_position`]).
     pub fn cone_pdf(&self, p_ref: Vec3, shapes: &[Shape]) -> Option<f32> {
-        if !self.radiance.is_constant() {
+        if self.radiance.is_spatially_varying() {
             return None;
         }
         let ShapeGeometry::Sphere(s) = &shapes[self.shape as usize].geometry else {
@@ -371,8 +407,14 @@ impl AreaEmitter {
 
     /// A ray leaving the emitter: a point by [`AreaEmitter::sample_position`] and a
     /// cosine-weighted direction on its emitting side, weight L π / p_A.
-    pub fn sample_ray(&self, u_pos: Vec2, u_dir: Vec2, shapes: &[Shape]) -> Option<EmitterRay> {
-        let pos = self.sample_position(u_pos, shapes)?;
+    pub fn sample_ray(
+        &self,
+        u_pos: Vec2,
+        u_dir: Vec2,
+        shapes: &[Shape],
+        wl: Vec4,
+    ) -> Option<EmitterRay> {
+        let pos = self.sample_position(u_pos, shapes, wl)?;
         let d = Frame::from_normal(pos.n)
             .to_world(square_to_cosine_hemisphere(u_dir))
             .normalize();
@@ -394,7 +436,7 @@ impl AreaEmitter {
     /// `si` (the same shape hit by a ray from `p_ref`).
     pub fn pdf_direction(&self, p_ref: Vec3, si: &SurfaceInteraction, shapes: &[Shape]) -> f32 {
         let geometry = &shapes[self.shape as usize].geometry;
-        if !self.radiance.is_constant() {
+        if self.radiance.is_spatially_varying() {
             let v = si.p - p_ref;
             let dist2 = v.length_squared();
             let cos_light = -si.ng.dot(v) / dist2.sqrt();

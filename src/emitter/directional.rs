@@ -2,18 +2,18 @@
 //! irradiance E (W/m²) on a surface perpendicular to it (a Dirac delta in direction).
 
 use super::DirectionSample;
-use crate::spectrum::Spectrum;
-use glam::Vec3;
+use crate::texture::ColorValue;
+use glam::{Vec3, Vec4};
 
 #[derive(Clone, Debug)]
 pub struct DirectionalEmitter {
     /// Unit direction in which the light travels.
     pub direction: Vec3,
-    pub irradiance: Spectrum,
+    pub irradiance: ColorValue,
 }
 
 impl DirectionalEmitter {
-    pub fn sample_direction(&self) -> DirectionSample {
+    pub fn sample_direction(&self, wl: Vec4) -> DirectionSample {
         DirectionSample {
             p: Vec3::ZERO,
             p_error: Vec3::ZERO,
@@ -21,7 +21,7 @@ impl DirectionalEmitter {
             d: -self.direction,
             dist: f32::INFINITY,
             pdf: 1.0,
-            radiance: self.irradiance,
+            radiance: self.irradiance.eval(wl),
             delta: true,
         }
     }

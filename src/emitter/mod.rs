@@ -22,9 +22,9 @@ pub use spot::SpotEmitter;
 use crate::geometry::{Frame, Ray};
 use crate::sampling::square_to_uniform_disk_concentric;
 use crate::shape::Shape;
-use crate::simd::{for_each_lane, LaneF32, LaneMask, Lanes, Scalar, V3};
-use crate::spectrum::{from_rgb, to_rgb, Spectrum};
-use glam::{Vec2, Vec3};
+use crate::simd::{for_each_lane, LaneF32, LaneMask, Lanes, Scalar, V3, V4};
+use crate::spectrum::Spectrum;
+use glam::{Vec2, Vec3, Vec4};
 
 /// A ray leaving an emitter, for light tracing (Mitsuba's `Emitter::sample_ray`): the ray
 /// and its weight, emitted radiance times the ray's measurement over its density (for a
@@ -150,7 +150,7 @@ pub struct DirectionSamples<L: Lanes> {
     pub d: V3<L::F>,
     pub dist: L::F,
     pub pdf: L::F,
-    pub radiance: V3<L::F>,
+    pub radiance: V4<L::F>,
     pub delta: L::M,
 }
 
@@ -166,7 +166,7 @@ impl<L: Lanes> DirectionSamples<L> {
             d: v,
             dist: z,
             pdf: z,
-            radiance: v,
+            radiance: V4::splat(z),
             delta: l.mask(0),
         }
     }
@@ -181,7 +181,7 @@ impl<L: Lanes> DirectionSamples<L> {
             d: self.d.lane(i),
             dist: self.dist.lane(i),
             pdf: self.pdf.lane(i),
-            radiance: from_rgb(self.radiance.lane(i)),
+            radiance: self.radiance.lane(i),
             delta: self.delta.bits() >> i & 1 != 0,
         }
     }
@@ -194,7 +194,7 @@ impl<L: Lanes> DirectionSamples<L> {
         self.d.set_lane(i, ds.d);
         self.dist.set_lane(i, ds.dist);
         self.pdf.set_lane(i, ds.pdf);
-        self.radiance.set_lane(i, to_rgb(ds.radiance));
+        self.radiance.set_lane(i, ds.radiance);
         let bit = l.mask(1 << i);
         self.delta = if ds.delta {
             self.delta | bit
@@ -213,7 +213,7 @@ impl<L: Lanes> DirectionSamples<L> {
             d: V3::select(m, a.d, b.d),
             dist: L::F::select(m, a.dist, b.dist),
             pdf: L::F::select(m, a.pdf, b.pdf),
-            radiance: V3::select(m, a.radiance, b.radiance),
+            radiance: V4::select(m, a.radiance, b.radiance),
             delta: (m & a.delta) | b.delta.and_not(m),
         }
     }
@@ -235,7 +235,7 @@ impl From<DirectionSample> for DirectionSamples<Scalar> {
             d: ds.d.into(),
             dist: ds.dist,
             pdf: ds.pdf,
-            radiance: to_rgb(ds.radiance).into(),
+            radiance: ds.radiance.into(),
             delta: ds.delta,
         }
     }
@@ -268,19 +268,21 @@ impl Emitter {
 
     /// Samples a direction from `p_ref` towards the emitter. The pdf does not include the
     /// probability of choosing this emitter.
+    /// `wl`: the path's wavelengths (spectral mode; ignored in RGB mode).
     pub fn sample_direction(
         &self,
         p_ref: Vec3,
         u: Vec2,
         shapes: &[Shape],
+        wl: Vec4,
     ) -> Option<DirectionSample> {
         match self {
-            Emitter::Area(e) => e.sample_direction(p_ref, u, shapes),
-            Emitter::Point(e) => e.sample_direction(p_ref),
-            Emitter::Spot(e) => e.sample_direction(p_ref),
-            Emitter::Projector(e) => e.sample_direction(p_ref),
-            Emitter::Directional(e) => Some(e.sample_direction()),
-            Emitter::Constant(e) => e.sample_direction(u),
+            Emitter::Area(e) => e.sample_direction(p_ref, u, shapes, wl),
+            Emitter::Point(e) => e.sample_direction(p_ref, wl),
+            Emitter::Spot(e) => e.sample_direction(p_ref, wl),
+            Emitter::Projector(e) => e.sample_direction(p_ref, wl),
+            Emitter::Directional(e) => Some(e.sample_direction(wl)),
+            Emitter::Constant(e) => e.sample_direction(u, wl),
             Emitter::EnvMap(e) => e.sample_direction(u),
         }
     }
@@ -296,6 +298,7 @@ impl Emitter {
         p_ref: V3<L::F>,
         u: (L::F, L::F),
         shapes: &[Shape],
+        wl: &[Vec4],
     ) -> (L::M, DirectionSamples<L>) {
         if let Emitter::Area(e) = self {
             if let Some(r) = e.sample_direction_lanes(l, m, p_ref, u, shapes) {
@@ -310,7 +313,7 @@ impl Emitter {
             #[inline(always)]
             |i| {
                 let ui = Vec2::new(u.0.lane(i), u.1.lane(i));
-                if let Some(ds) = self.sample_direction(p_ref.lane(i), ui, shapes) {
+                if let Some(ds) = self.sample_direction(p_ref.lane(i), ui, shapes, wl[i]) {
                     out.set_lane(l, i, &ds);
                     ok |= 1 << i;
                 }
@@ -328,23 +331,24 @@ impl Emitter {
         u_dir: Vec2,
         shapes: &[Shape],
         bounds: (Vec3, f32),
+        wl: Vec4,
     ) -> Option<EmitterRay> {
         let disk = std::f32::consts::PI * bounds.1 * bounds.1;
         let r = match self {
-            Emitter::Area(e) => e.sample_ray(u_pos, u_dir, shapes)?,
-            Emitter::Point(e) => e.sample_ray(u_dir),
-            Emitter::Spot(e) => e.sample_ray(u_dir)?,
-            Emitter::Projector(e) => e.sample_ray(u_dir)?,
+            Emitter::Area(e) => e.sample_ray(u_pos, u_dir, shapes, wl)?,
+            Emitter::Point(e) => e.sample_ray(u_dir, wl),
+            Emitter::Spot(e) => e.sample_ray(u_dir, wl)?,
+            Emitter::Projector(e) => e.sample_ray(u_dir, wl)?,
             Emitter::Directional(e) => EmitterRay::from_infinity(
                 ray_from_infinity(e.direction, u_pos, bounds),
-                e.irradiance * disk,
+                e.irradiance.eval(wl) * disk,
                 disk,
             ),
             Emitter::Constant(e) => {
                 let d = crate::sampling::square_to_uniform_sphere(u_dir);
                 EmitterRay::from_infinity(
                     ray_from_infinity(-d, u_pos, bounds),
-                    e.radiance * (disk / constant::UNIFORM_SPHERE_PDF),
+                    e.radiance.eval(wl) * (disk / constant::UNIFORM_SPHERE_PDF),
                     disk,
                 )
             }
@@ -384,9 +388,9 @@ impl Emitter {
 
     /// A point on an area emitter (`None` for every other kind), for connecting the
     /// emitter to the camera.
-    pub fn sample_position(&self, u: Vec2, shapes: &[Shape]) -> Option<EmitterPosition> {
+    pub fn sample_position(&self, u: Vec2, shapes: &[Shape], wl: Vec4) -> Option<EmitterPosition> {
         match self {
-            Emitter::Area(e) => e.sample_position(u, shapes),
+            Emitter::Area(e) => e.sample_position(u, shapes, wl),
             _ => None,
         }
     }
@@ -406,9 +410,9 @@ impl Emitter {
     }
 
     /// Radiance arriving from infinity along −`d` (an escaping ray with direction `d`).
-    pub fn eval_environment(&self, d: Vec3) -> Spectrum {
+    pub fn eval_environment(&self, d: Vec3, wl: Vec4) -> Spectrum {
         match self {
-            Emitter::Constant(e) => e.radiance,
+            Emitter::Constant(e) => e.radiance.eval(wl),
             Emitter::EnvMap(e) => e.eval(d),
             _ => Spectrum::ZERO,
         }
@@ -436,17 +440,19 @@ impl Emitter {
     /// - directional: π r² · E
     /// - constant and envmap: π · π r² · mean L (irradiance π L over the disk π r²)
     pub fn power(&self, shapes: &[Shape], scene_radius: f64) -> f64 {
-        let mean = |s: Spectrum| (s.x as f64 + s.y as f64 + s.z as f64) / 3.0;
+        // (RGB mode's mean; spectral mode: the mean over the visible range, or for a D65
+        // emission the RGB it was given, which is all a choice of emitter needs)
+        let mean = |c: &crate::texture::ColorValue| c.mean_for_power();
         let disk = std::f64::consts::PI * scene_radius * scene_radius;
         match self {
             Emitter::Area(e) => {
                 std::f64::consts::PI * shapes[e.shape as usize].geometry.area() * e.mean_radiance()
             }
-            Emitter::Point(e) => 4.0 * std::f64::consts::PI * mean(e.intensity),
-            Emitter::Spot(e) => e.solid_angle() * mean(e.intensity) * e.texture_mean(),
+            Emitter::Point(e) => 4.0 * std::f64::consts::PI * mean(&e.intensity),
+            Emitter::Spot(e) => e.solid_angle() * mean(&e.intensity) * e.texture_mean(),
             Emitter::Projector(e) => std::f64::consts::PI * e.mean_irradiance() * e.image_area(),
-            Emitter::Directional(e) => disk * mean(e.irradiance),
-            Emitter::Constant(e) => std::f64::consts::PI * disk * mean(e.radiance),
+            Emitter::Directional(e) => disk * mean(&e.irradiance),
+            Emitter::Constant(e) => std::f64::consts::PI * disk * mean(&e.radiance),
             Emitter::EnvMap(e) => std::f64::consts::PI * disk * e.mean_radiance(),
         }
     }

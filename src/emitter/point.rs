@@ -4,17 +4,17 @@
 use super::{DirectionSample, EmitterRay};
 use crate::geometry::Ray;
 use crate::sampling::square_to_uniform_sphere;
-use crate::spectrum::Spectrum;
-use glam::{Vec2, Vec3};
+use crate::texture::ColorValue;
+use glam::{Vec2, Vec3, Vec4};
 
 #[derive(Clone, Debug)]
 pub struct PointEmitter {
     pub position: Vec3,
-    pub intensity: Spectrum,
+    pub intensity: ColorValue,
 }
 
 impl PointEmitter {
-    pub fn sample_direction(&self, p_ref: Vec3) -> Option<DirectionSample> {
+    pub fn sample_direction(&self, p_ref: Vec3, wl: Vec4) -> Option<DirectionSample> {
         let v = self.position - p_ref;
         let dist2 = v.length_squared();
         if !(dist2 > 0.0 && dist2.is_finite()) {
@@ -25,15 +25,15 @@ impl PointEmitter {
             self.position,
             v / dist,
             dist,
-            self.intensity / dist2,
+            self.intensity.eval(wl) / dist2,
         ))
     }
 
     /// A ray in a uniformly drawn direction, weight 4π I.
-    pub fn sample_ray(&self, u: Vec2) -> EmitterRay {
+    pub fn sample_ray(&self, u: Vec2, wl: Vec4) -> EmitterRay {
         EmitterRay::from_point(
             Ray::new(self.position, square_to_uniform_sphere(u), f32::INFINITY),
-            self.intensity * (4.0 * std::f32::consts::PI),
+            self.intensity.eval(wl) * (4.0 * std::f32::consts::PI),
         )
     }
 }

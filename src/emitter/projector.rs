@@ -81,7 +81,7 @@ impl ProjectorEmitter {
     /// spans the image rectangle of area A at distance 1, dω = A cos³θ du dv, and the
     /// intensity there is π · scale · E(uv) / cos³θ, so the weight is π · scale · E(uv) · A
     /// / p_uv (as Mitsuba's `sample_ray`).
-    pub fn sample_ray(&self, u: Vec2) -> Option<EmitterRay> {
+    pub fn sample_ray(&self, u: Vec2, wl: glam::Vec4) -> Option<EmitterRay> {
         let (uv, pdf) = self.irradiance.sample_position(u);
         if !(pdf > 0.0 && pdf.is_finite()) {
             return None;
@@ -93,7 +93,7 @@ impl ProjectorEmitter {
             1.0,
         );
         let d = self.to_world.transform_vector3(local).normalize();
-        let e = self.irradiance.eval(&TextureContext::at_uv(uv));
+        let e = self.irradiance.eval(&TextureContext::at_uv_wl(uv, wl));
         let area = self.image_area() as f32;
         Some(EmitterRay::from_point(
             Ray::new(self.position, d, f32::INFINITY),
@@ -125,7 +125,7 @@ impl ProjectorEmitter {
         }
     }
 
-    pub fn sample_direction(&self, p_ref: Vec3) -> Option<DirectionSample> {
+    pub fn sample_direction(&self, p_ref: Vec3, wl: glam::Vec4) -> Option<DirectionSample> {
         let local = self.to_local.transform_point3(p_ref);
         if local.z <= 0.0 {
             return None;
@@ -145,7 +145,7 @@ impl ProjectorEmitter {
         }
         let d = v / dist;
         let cos = -self.axis.dot(d);
-        let e = self.irradiance.eval(&TextureContext::at_uv(uv));
+        let e = self.irradiance.eval(&TextureContext::at_uv_wl(uv, wl));
         let radiance = e * (std::f32::consts::PI * self.scale / (local.z * local.z * cos));
         radiance.is_finite().then_some(DirectionSample::from_point(
             self.position,

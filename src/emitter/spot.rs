@@ -16,9 +16,8 @@
 use super::{DirectionSample, EmitterRay};
 use crate::geometry::Ray;
 use crate::sampling::square_to_uniform_cone;
-use crate::spectrum::Spectrum;
-use crate::texture::{Texture, TextureContext};
-use glam::{DMat3, DMat4, DVec3, Mat3, Vec2, Vec3};
+use crate::texture::{ColorValue, Texture, TextureContext};
+use glam::{DMat3, DMat4, DVec3, Mat3, Vec2, Vec3, Vec4};
 
 #[derive(Clone, Debug)]
 pub struct SpotEmitter {
@@ -28,7 +27,7 @@ pub struct SpotEmitter {
     to_local: Mat3,
     /// Local to world directions (`to_world`'s linear part).
     to_world: Mat3,
-    pub intensity: Spectrum,
+    pub intensity: ColorValue,
     cutoff_angle: f32,
     cos_cutoff: f32,
     cos_beam: f32,
@@ -44,7 +43,7 @@ impl SpotEmitter {
     /// degenerate.
     pub fn new(
         to_world: DMat4,
-        intensity: Spectrum,
+        intensity: ColorValue,
         cutoff_angle: f64,
         beam_width: f64,
         texture: Option<Texture>,
@@ -104,12 +103,12 @@ impl SpotEmitter {
 
     /// A ray in a direction drawn uniformly within the cutoff cone (as Mitsuba's
     /// `sample_ray`), weight I · falloff · texture / p_ω.
-    pub fn sample_ray(&self, u: Vec2) -> Option<EmitterRay> {
+    pub fn sample_ray(&self, u: Vec2, wl: Vec4) -> Option<EmitterRay> {
         let local = square_to_uniform_cone(u, self.cos_cutoff);
         let pdf = 1.0 / (2.0 * std::f32::consts::PI * (1.0 - self.cos_cutoff));
-        let mut weight = self.intensity * (self.falloff(local) / pdf);
+        let mut weight = self.intensity.eval(wl) * (self.falloff(local) / pdf);
         if let Some(t) = &self.texture {
-            weight *= t.eval(&TextureContext::at_uv(self.direction_to_uv(local)));
+            weight *= t.eval(&TextureContext::at_uv_wl(self.direction_to_uv(local), wl));
         }
         let d = (self.to_world * local).normalize();
         Some(EmitterRay::from_point(
@@ -129,7 +128,7 @@ impl SpotEmitter {
         }
     }
 
-    pub fn sample_direction(&self, p_ref: Vec3) -> Option<DirectionSample> {
+    pub fn sample_direction(&self, p_ref: Vec3, wl: Vec4) -> Option<DirectionSample> {
         let v = self.position - p_ref;
         let dist2 = v.length_squared();
         if !(dist2 > 0.0 && dist2.is_finite()) {
@@ -142,9 +141,9 @@ impl SpotEmitter {
         if f <= 0.0 {
             return None;
         }
-        let mut radiance = self.intensity * (f / dist2);
+        let mut radiance = self.intensity.eval(wl) * (f / dist2);
         if let Some(t) = &self.texture {
-            radiance *= t.eval(&TextureContext::at_uv(self.direction_to_uv(local)));
+            radiance *= t.eval(&TextureContext::at_uv_wl(self.direction_to_uv(local), wl));
         }
         Some(DirectionSample::from_point(
             self.position,

@@ -22,6 +22,7 @@ use crate::integrator::{Integrator, PathStats};
 use crate::sampler::SampleStream;
 pub use crate::scene::description::AovKind;
 use crate::scene::Scene;
+use crate::spectrum::NO_WAVELENGTHS;
 use crate::spectrum::{from_rgb, rgb, Spectrum};
 use glam::Vec3;
 
@@ -62,7 +63,7 @@ impl AovIntegrator {
         stats: &mut PathStats,
     ) -> Spectrum {
         if let Some((_, nested)) = self.nested.get(self.group) {
-            return nested.li(scene, ray, sampler, stats);
+            return nested.li(scene, ray, NO_WAVELENGTHS, sampler, stats);
         }
         let Some((_, kind)) = self.aovs.get(self.group - self.nested.len()) else {
             return Spectrum::ZERO;
@@ -79,7 +80,7 @@ impl AovIntegrator {
             AovKind::ShNormal => from_rgb(si.frame.n),
             AovKind::Uv => rgb(si.uv.x, si.uv.y, 0.0),
             AovKind::Albedo => {
-                let bsdf = scene.shading_bsdf(&si);
+                let bsdf = scene.shading_bsdf(&si, NO_WAVELENGTHS);
                 let wi = si.frame.to_local(-ray.d.normalize());
                 bsdf.eval(wi, Vec3::Z) * std::f32::consts::PI
             }

@@ -79,6 +79,7 @@ use crate::sampler::SampleStream;
 use crate::scene::Scene;
 use crate::shape::SurfaceInteraction;
 use crate::spectrum::Spectrum;
+use crate::spectrum::NO_WAVELENGTHS;
 use glam::{DVec2, Vec2, Vec3};
 
 /// The most vertices a subpath holds: an unbounded `max_depth` (−1) relies on Russian
@@ -288,7 +289,7 @@ impl Subpath {
         while self.bsdfs.len() <= i {
             self.bsdfs.push(ShadingBsdf::new());
         }
-        scene.shading_bsdf_into(&si, &mut self.bsdfs[i]);
+        scene.shading_bsdf_into(&si, NO_WAVELENGTHS, &mut self.bsdfs[i]);
         self.v[i].bsdf = BsdfRef::Own(i as u32);
     }
 
@@ -428,7 +429,7 @@ fn light_vertex_from_sample(scene: &Scene, e: usize, ds: &DirectionSample) -> Ve
         let mut v = Vertex::new(Kind::AreaLight, si, Spectrum::ONE);
         // The emitter's position density: uniform by area for a constant radiance; the
         // texture's, p_ω |cos| / dist², for a textured one.
-        v.pdf_emit = if a.radiance.is_constant() {
+        v.pdf_emit = if !a.radiance.is_spatially_varying() {
             pmf * (1.0 / scene.shapes[a.shape as usize].geometry.area()) as f32
         } else {
             ds.pdf * ds.n.dot(ds.d).abs() / (ds.dist * ds.dist)
@@ -608,8 +609,8 @@ impl Bdpt {
             // The camera subpath ends on an emitter.
             let pt = &cam.v[t - 1];
             let le = match pt.kind {
-                Kind::Surface => emission_at(scene, Some(&pt.si), -pt.wi),
-                Kind::InfiniteLight => scene.eval_environment(-pt.d),
+                Kind::Surface => emission_at(scene, Some(&pt.si), -pt.wi, NO_WAVELENGTHS),
+                Kind::InfiniteLight => scene.eval_environment(-pt.d, NO_WAVELENGTHS),
                 _ => Spectrum::ZERO,
             };
             return Some(Candidate {
@@ -646,7 +647,7 @@ impl Bdpt {
             let pt = &cam.v[t - 1];
             let (bsdf, wi) = cam.connectible(scene, t - 1)?;
             let u = sampler.next_2d();
-            let (e, ds) = scene.sample_emitter_direction_indexed(pt.p(), u)?;
+            let (e, ds) = scene.sample_emitter_direction_indexed(pt.p(), u, NO_WAVELENGTHS)?;
             let f = bsdf.eval(wi, pt.si.frame.to_local(ds.d));
             let value = positive(pt.beta * f * ds.radiance / ds.pdf)?;
             return Some(Candidate {
@@ -820,8 +821,13 @@ impl Bdpt {
         let u_dir = sampler.next_2d();
         let u_pos = sampler.next_2d();
         let emitter = &scene.emitters[e];
-        let Some(er) = emitter.sample_ray(u_pos, u_dir, &scene.shapes, scene.bounding_sphere)
-        else {
+        let Some(er) = emitter.sample_ray(
+            u_pos,
+            u_dir,
+            &scene.shapes,
+            scene.bounding_sphere,
+            NO_WAVELENGTHS,
+        ) else {
             return;
         };
         let d = er.ray.d;
@@ -907,7 +913,7 @@ impl Bdpt {
                 };
                 let weight = if transmissive {
                     // The same lobe and direction (importance mode changes weights only).
-                    scene.shading_bsdf_into(&si, &mut light.importance);
+                    scene.shading_bsdf_into(&si, NO_WAVELENGTHS, &mut light.importance);
                     light.importance.set_importance();
                     match light.importance.sample(wi_local, u1, u2) {
                         Some(b) => b.weight,

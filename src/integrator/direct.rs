@@ -20,6 +20,7 @@ use crate::sampler::SampleStream;
 use crate::sampling::mis_power;
 use crate::scene::Scene;
 use crate::spectrum::Spectrum;
+use glam::Vec4;
 
 #[derive(Clone, Debug)]
 pub struct DirectIntegrator {
@@ -48,6 +49,7 @@ impl DirectIntegrator {
         &self,
         scene: &Scene,
         ray: Ray,
+        wl: Vec4,
         sampler: &mut SampleStream,
         stats: &mut PathStats,
     ) -> Spectrum {
@@ -58,13 +60,13 @@ impl DirectIntegrator {
             // Camera rays pass through area emitters; the environment stays hidden.
             hit = pass_through_emitters(scene, ray.d, hit, stats);
         } else {
-            result += emission_at(scene, hit.as_ref(), ray.d);
+            result += emission_at(scene, hit.as_ref(), ray.d, wl);
         }
         let Some(si) = hit else {
             return result;
         };
         stats.bounces += 1;
-        let bsdf = scene.shading_bsdf(&si);
+        let bsdf = scene.shading_bsdf(&si, wl);
         let wi = si.frame.to_local(-ray.d.normalize());
 
         // Emitter sampling.
@@ -72,7 +74,7 @@ impl DirectIntegrator {
             let inv_n = 1.0 / self.emitter_samples as f32;
             for _ in 0..self.emitter_samples {
                 let u = sampler.next_2d();
-                if let Some(e) = sample_emitter(scene, &si, &bsdf, wi, u, stats) {
+                if let Some(e) = sample_emitter(scene, &si, &bsdf, wi, u, wl, stats) {
                     let w = if e.delta {
                         1.0
                     } else {
@@ -97,7 +99,7 @@ impl DirectIntegrator {
             let next = Scene::spawn_ray(&si, si.frame.to_world(bs.wo));
             stats.rays += 1;
             let next_hit = scene.intersect(&next);
-            let le = emission_at(scene, next_hit.as_ref(), next.d);
+            let le = emission_at(scene, next_hit.as_ref(), next.d, wl);
             if le == Spectrum::ZERO {
                 continue;
             }

@@ -30,7 +30,7 @@ use crate::sampler::SampleStream;
 use crate::scene::Scene;
 use crate::shape::SurfaceInteraction;
 use crate::spectrum::Spectrum;
-use glam::{Vec2, Vec3};
+use glam::{Vec2, Vec3, Vec4};
 
 /// Counters gathered while tracing, summed over a render.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
@@ -77,6 +77,11 @@ pub enum Integrator {
 
 impl Integrator {
     /// The plugin name, as in a scene file (radiosity is penumbra's own).
+    /// Whether the integrator renders in spectral mode (`--mode spectral`) yet.
+    pub fn supports_spectral(&self) -> bool {
+        matches!(self, Integrator::Path(_) | Integrator::Direct(_))
+    }
+
     pub fn name(&self) -> &'static str {
         match self {
             Integrator::Path(_) => "path",
@@ -97,12 +102,14 @@ impl Integrator {
         &self,
         scene: &Scene,
         ray: Ray,
+        wl: Vec4,
         sampler: &mut SampleStream,
         stats: &mut PathStats,
     ) -> Spectrum {
         match self {
-            Integrator::Path(p) => p.li(scene, ray, sampler, stats),
-            Integrator::Direct(d) => d.li(scene, ray, sampler, stats),
+            Integrator::Path(p) => p.li(scene, ray, wl, sampler, stats),
+            Integrator::Direct(d) => d.li(scene, ray, wl, sampler, stats),
+            // RGB only (`Integrator::supports_spectral`):
             Integrator::Whitted(w) => w.li(scene, ray, sampler, stats),
             Integrator::Aov(a) => a.li(scene, ray, sampler, stats),
             Integrator::Radiosity(r) => r.li_with_solution(scene, ray, sampler, stats),
@@ -119,12 +126,17 @@ impl Integrator {
 /// The radiance arriving along a ray of direction `d` from where it ended: the area emitter
 /// of the surface it hit (one-sided), or the environment when it escaped (`hit` is `None`).
 #[inline]
-pub(crate) fn emission_at(scene: &Scene, hit: Option<&SurfaceInteraction>, d: Vec3) -> Spectrum {
+pub(crate) fn emission_at(
+    scene: &Scene,
+    hit: Option<&SurfaceInteraction>,
+    d: Vec3,
+    wl: Vec4,
+) -> Spectrum {
     match hit {
-        None => scene.eval_environment(d),
+        None => scene.eval_environment(d, wl),
         Some(si) => match scene.shapes[si.shape as usize].emitter {
             Some(e) => match &scene.emitters[e as usize] {
-                Emitter::Area(area) => area.eval(si, -d.normalize(), &scene.shapes),
+                Emitter::Area(area) => area.eval(si, -d.normalize(), &scene.shapes, wl),
                 _ => Spectrum::ZERO,
             },
             None => Spectrum::ZERO,
@@ -198,9 +210,10 @@ pub(crate) fn sample_emitter(
     bsdf: &ShadingBsdf,
     wi: Vec3,
     u: Vec2,
+    wl: Vec4,
     stats: &mut PathStats,
 ) -> Option<EmitterSample> {
-    let ds = scene.sample_emitter_direction(si, u)?;
+    let ds = scene.sample_emitter_direction(si, u, wl)?;
     connect_emitter(scene, si, bsdf, wi, &ds, stats)
 }
 

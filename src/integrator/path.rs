@@ -14,9 +14,9 @@ use crate::sampler::SampleStream;
 use crate::sampling::{mis_power, mis_power_lanes};
 use crate::scene::Scene;
 use crate::shape::{SurfaceInteraction, SurfaceInteractions};
-use crate::simd::{for_each_lane, LaneF32, LaneMask, LaneU32, Lanes, Scalar, V3};
-use crate::spectrum::{from_rgb, to_rgb, Spectrum};
-use glam::Vec3;
+use crate::simd::{for_each_lane, LaneF32, LaneMask, LaneU32, Lanes, Scalar, V3, V4};
+use crate::spectrum::Spectrum;
+use glam::{Vec3, Vec4};
 
 #[derive(Clone, Debug)]
 pub struct PathIntegrator {
@@ -55,10 +55,11 @@ impl PathIntegrator {
         &self,
         scene: &Scene,
         ray: Ray,
+        wl: Vec4,
         sampler: &mut SampleStream,
         stats: &mut PathStats,
     ) -> Spectrum {
-        let Some(mut st) = self.start(ray) else {
+        let Some(mut st) = self.start(ray, wl) else {
             return Spectrum::ZERO;
         };
         // Filled in place at vertices whose material varies (see `Scene::bsdf_at`).
@@ -79,20 +80,21 @@ impl PathIntegrator {
                 }
             }
         }
-        from_rgb(st.result.into())
+        st.result.into()
     }
 
     /// The state of a path whose camera ray is `ray`; `None` when `max_depth` is 0 (the path
     /// is black).
     #[inline(always)]
-    pub fn start(&self, ray: Ray) -> Option<PathState> {
+    pub fn start(&self, ray: Ray, wl: Vec4) -> Option<PathState> {
         if self.max_depth == 0 {
             return None;
         }
         Some(PathState {
             ray: ray.into(),
-            throughput: Vec3::ONE.into(),
-            result: Vec3::ZERO.into(),
+            throughput: Spectrum::ONE.into(),
+            result: Spectrum::ZERO.into(),
+            wl: [wl],
             eta: 1.0,
             depth: 0,
             prev_p: ray.o.into(),
@@ -108,15 +110,14 @@ impl PathIntegrator {
     pub fn escape(&self, scene: &Scene, st: &mut PathState) {
         if scene.environment.is_some() && !(st.depth == 0 && self.hide_emitters) {
             let d = Vec3::from(st.ray.d);
-            let le = scene.eval_environment(d);
+            let le = scene.eval_environment(d, st.wl[0]);
             if le != Spectrum::ZERO {
                 let w = if st.prev_delta {
                     1.0
                 } else {
                     mis_power(st.prev_bsdf_pdf, scene.pdf_environment(d))
                 };
-                st.result =
-                    (Vec3::from(st.result) + Vec3::from(st.throughput) * to_rgb(le) * w).into();
+                st.result = (Vec4::from(st.result) + Vec4::from(st.throughput) * le * w).into();
             }
         }
     }
@@ -143,7 +144,9 @@ impl PathIntegrator {
                 return SurfaceStep::Trace;
             }
             let le = match &scene.emitters[e as usize] {
-                crate::emitter::Emitter::Area(area) => area.eval(si, wi_world, &scene.shapes),
+                crate::emitter::Emitter::Area(area) => {
+                    area.eval(si, wi_world, &scene.shapes, st.wl[0])
+                }
                 _ => Spectrum::ZERO,
             };
             if le != Spectrum::ZERO {
@@ -155,8 +158,7 @@ impl PathIntegrator {
                         scene.pdf_emitter_direction(st.prev_p.into(), si),
                     )
                 };
-                st.result =
-                    (Vec3::from(st.result) + Vec3::from(st.throughput) * to_rgb(le) * w).into();
+                st.result = (Vec4::from(st.result) + Vec4::from(st.throughput) * le * w).into();
             }
         }
         if st.depth.saturating_add(1) >= self.max_depth {
@@ -232,7 +234,7 @@ impl PathIntegrator {
                 stats.bounces += 1;
                 let shape = sis.shape.lane(i);
                 if scene.uniform_bsdf(shape).is_none() {
-                    scene.shading_bsdf_into(&si(i), &mut bufs[i]);
+                    scene.shading_bsdf_into(&si(i), st.wl.as_ref()[i], &mut bufs[i]);
                 }
                 let bsdf = lane_bsdf(scene, shape, &bufs[i]);
                 let w = wi.lane(i);
@@ -268,10 +270,10 @@ impl PathIntegrator {
         if !m.any() {
             return;
         }
-        let (sampled, ds) = scene.sample_emitter_direction_lanes(l, m, sis.p, u);
+        let (sampled, ds) = scene.sample_emitter_direction_lanes(l, m, sis.p, u, st.wl.as_ref());
         let zero = l.splat(0.0);
         let wo = sis.frame.to_local(ds.d);
-        let mut f = V3::splat(zero);
+        let mut f = V4::splat(zero);
         let mut lit = 0u32;
         for_each_lane(
             L::WIDTH,
@@ -282,7 +284,7 @@ impl PathIntegrator {
                 let f_i = bsdf.eval(wi.lane(i), wo.lane(i));
                 if f_i != Spectrum::ZERO {
                     lit |= 1 << i;
-                    f.set_lane(i, to_rgb(f_i));
+                    f.set_lane(i, f_i);
                 }
             },
         );
@@ -317,7 +319,7 @@ impl PathIntegrator {
         }
         let value = f * ds.radiance / ds.pdf;
         let w = L::F::select(ds.delta, l.splat(1.0), mis_power_lanes(l, ds.pdf, bsdf_pdf));
-        st.result = V3::select(visible, st.result + st.throughput * value * w, st.result);
+        st.result = V4::select(visible, st.result + st.throughput * value * w, st.result);
     }
 
     /// BSDF sampling at the lanes of `m`: the next rays (from origins offset off the
@@ -337,7 +339,7 @@ impl PathIntegrator {
     ) -> L::M {
         let zero = l.splat(0.0);
         let mut wo = V3::splat(zero);
-        let mut weight = V3::splat(zero);
+        let mut weight = V4::splat(zero);
         let (mut pdf, mut eta) = (zero, zero);
         let (mut delta, mut go) = (0u32, 0u32);
         for_each_lane(
@@ -352,7 +354,7 @@ impl PathIntegrator {
                 if let Some(bs) = bsdf.sample(wi.lane(i), u1, u2) {
                     go |= 1 << i;
                     wo.set_lane(i, bs.wo);
-                    weight.set_lane(i, to_rgb(bs.weight));
+                    weight.set_lane(i, bs.weight);
                     pdf.set_lane(i, bs.pdf);
                     eta.set_lane(i, bs.eta);
                     delta |= (bs.delta as u32) << i;
@@ -362,7 +364,7 @@ impl PathIntegrator {
         let go = l.mask(go);
         if go.any() {
             let wo_world = sis.frame.to_world(wo);
-            st.throughput = V3::select(go, st.throughput * weight, st.throughput);
+            st.throughput = V4::select(go, st.throughput * weight, st.throughput);
             st.eta = L::F::select(go, st.eta * eta, st.eta);
             st.prev_p = V3::select(go, sis.p, st.prev_p);
             st.prev_bsdf_pdf = L::F::select(go, pdf, st.prev_bsdf_pdf);
@@ -410,7 +412,7 @@ impl PathIntegrator {
             },
         );
         let ended = l.mask(ended);
-        st.throughput = V3::select(rr.and_not(ended), st.throughput / q, st.throughput);
+        st.throughput = V4::select(rr.and_not(ended), st.throughput / q, st.throughput);
         alive.and_not(ended)
     }
 }
@@ -427,8 +429,10 @@ fn lane_bsdf<'a>(scene: &'a Scene, shape: u32, buf: &'a ShadingBsdf) -> &'a Shad
 #[derive(Clone, Copy, Debug)]
 pub struct PathLanes<L: Lanes> {
     pub ray: Rays<L>,
-    pub throughput: V3<L::F>,
-    pub result: V3<L::F>,
+    pub throughput: V4<L::F>,
+    pub result: V4<L::F>,
+    /// Each lane's wavelengths (nm; spectral mode, else unused).
+    pub wl: L::Wavelengths,
     pub eta: L::F,
     pub depth: L::U32,
     pub prev_p: V3<L::F>,
@@ -447,8 +451,9 @@ impl<L: Lanes> PathLanes<L> {
                 d: v,
                 tmax: z,
             },
-            throughput: v,
-            result: v,
+            throughput: V4::splat(z),
+            result: V4::splat(z),
+            wl: L::Wavelengths::default(),
             eta: z,
             depth: l.splat_u32(0),
             prev_p: v,
@@ -464,6 +469,7 @@ impl<L: Lanes> PathLanes<L> {
             ray: self.ray.lane(i).into(),
             throughput: self.throughput.lane(i).into(),
             result: self.result.lane(i).into(),
+            wl: [self.wl.as_ref()[i]],
             eta: self.eta.lane(i),
             depth: self.depth.lane(i),
             prev_p: self.prev_p.lane(i).into(),
@@ -480,6 +486,7 @@ impl<L: Lanes> PathLanes<L> {
         self.ray.tmax.set_lane(i, st.ray.tmax);
         self.throughput.set_lane(i, st.throughput.into());
         self.result.set_lane(i, st.result.into());
+        self.wl.as_mut()[i] = st.wl[0];
         self.eta.set_lane(i, st.eta);
         self.depth.set_lane(i, st.depth);
         self.prev_p.set_lane(i, st.prev_p.into());

@@ -27,6 +27,7 @@ use crate::integrator::PathStats;
 use crate::sampler::SampleStream;
 use crate::scene::Scene;
 use crate::spectrum::Spectrum;
+use crate::spectrum::NO_WAVELENGTHS;
 use glam::{Vec2, Vec3};
 
 #[derive(Clone, Debug)]
@@ -173,7 +174,7 @@ impl ParticleTracer {
         if emitter.is_environment() {
             return self.environment_from_camera(scene, i, count, u, stats, splats);
         }
-        let Some(pos) = emitter.sample_position(u, &scene.shapes) else {
+        let Some(pos) = emitter.sample_position(u, &scene.shapes, NO_WAVELENGTHS) else {
             return;
         };
         let Some(c) = scene.camera.sample_direction(pos.p) else {
@@ -211,7 +212,8 @@ impl ParticleTracer {
         splats: &mut Vec<Splat>,
     ) {
         let origin = scene.camera.position();
-        let Some(ds) = scene.emitters[i].sample_direction(origin, u, &scene.shapes) else {
+        let Some(ds) = scene.emitters[i].sample_direction(origin, u, &scene.shapes, NO_WAVELENGTHS)
+        else {
             return;
         };
         // A point at distance 1 along the direction carries W_e / 1².
@@ -243,9 +245,13 @@ impl ParticleTracer {
         let (i, count) = Self::pick_emitter(scene, sampler.next_1d());
         let u_dir = sampler.next_2d();
         let u_pos = sampler.next_2d();
-        let Some(er) =
-            scene.emitters[i].sample_ray(u_pos, u_dir, &scene.shapes, scene.bounding_sphere)
-        else {
+        let Some(er) = scene.emitters[i].sample_ray(
+            u_pos,
+            u_dir,
+            &scene.shapes,
+            scene.bounding_sphere,
+            NO_WAVELENGTHS,
+        ) else {
             return;
         };
         let mut ray = er.ray;
@@ -260,7 +266,7 @@ impl ParticleTracer {
                 break;
             };
             stats.bounces += 1;
-            scene.shading_bsdf_into(&si, &mut bsdf);
+            scene.shading_bsdf_into(&si, NO_WAVELENGTHS, &mut bsdf);
             bsdf.set_importance();
             // Towards where the light came from.
             let wi_world = -ray.d.normalize();

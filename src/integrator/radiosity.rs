@@ -50,6 +50,7 @@ use crate::sampling::{square_to_cosine_hemisphere, square_to_uniform_triangle};
 pub use crate::scene::description::{RadiosityParams, Shading};
 use crate::scene::Scene;
 use crate::shape::{ShapeGeometry, SurfaceInteraction};
+use crate::spectrum::NO_WAVELENGTHS;
 use glam::{Vec2, Vec3};
 use rand::RngExt;
 use rayon::prelude::*;
@@ -406,11 +407,11 @@ impl Solution {
                         // form-factor pass below (same points).
                         let _ = (rng.random::<f32>(), rng.random::<f32>());
                         let si = layout.sample(scene, c, u);
-                        let bsdf = scene.shading_bsdf(&si);
+                        let bsdf = scene.shading_bsdf(&si, NO_WAVELENGTHS);
                         rho += bsdf.eval(z, z) * std::f32::consts::PI;
                         if let Some(Emitter::Area(a)) = emitter.map(|e| &scene.emitters[e as usize])
                         {
-                            e += a.eval(&si, si.frame.to_world(z), &scene.shapes)
+                            e += a.eval(&si, si.frame.to_world(z), &scene.shapes, NO_WAVELENGTHS)
                                 * std::f32::consts::PI;
                         }
                     }
@@ -631,10 +632,18 @@ impl RadiosityIntegrator {
             Shading::Flat => radiance(&si, ray.d, false),
             Shading::Gather => {
                 stats.bounces += 1;
-                let mut l = emission_at(scene, Some(&si), ray.d);
-                let bsdf = scene.shading_bsdf(&si);
+                let mut l = emission_at(scene, Some(&si), ray.d, NO_WAVELENGTHS);
+                let bsdf = scene.shading_bsdf(&si, NO_WAVELENGTHS);
                 let wi = si.frame.to_local(-ray.d.normalize());
-                if let Some(e) = sample_emitter(scene, &si, &bsdf, wi, sampler.next_2d(), stats) {
+                if let Some(e) = sample_emitter(
+                    scene,
+                    &si,
+                    &bsdf,
+                    wi,
+                    sampler.next_2d(),
+                    NO_WAVELENGTHS,
+                    stats,
+                ) {
                     l += e.value;
                 }
                 let (u1, u2) = (sampler.next_1d(), sampler.next_2d());

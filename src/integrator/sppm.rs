@@ -53,6 +53,7 @@ use crate::sampling::Distribution1D;
 use crate::scene::Scene;
 use crate::shape::SurfaceInteraction;
 use crate::spectrum::to_rgb;
+use crate::spectrum::NO_WAVELENGTHS;
 use glam::{Vec2, Vec3};
 use rayon::prelude::*;
 use std::time::Instant;
@@ -290,17 +291,19 @@ impl Sppm {
             let hit = scene.intersect(&ray);
             // Emission is seen directly or through delta bounces only (what follows the
             // visible point is the photons' and the direct-light sample's).
-            ld += beta * emission_share * emission_at(scene, hit.as_ref(), ray.d);
+            ld += beta * emission_share * emission_at(scene, hit.as_ref(), ray.d, NO_WAVELENGTHS);
             let Some(si) = hit else { break };
             stats.bounces += 1;
             dist += si.t * ray.d.length();
-            scene.shading_bsdf_into(&si, &mut vp.bsdf);
+            scene.shading_bsdf_into(&si, NO_WAVELENGTHS, &mut vp.bsdf);
             let bsdf = &vp.bsdf;
             let wo = si.frame.to_local(-ray.d.normalize());
             let u_light = sampler.next_2d();
             if bsdf.has_smooth_lobe(wo) {
                 if depth < self.max_depth {
-                    if let Some(e) = sample_emitter(scene, &si, bsdf, wo, u_light, stats) {
+                    if let Some(e) =
+                        sample_emitter(scene, &si, bsdf, wo, u_light, NO_WAVELENGTHS, stats)
+                    {
                         ld += beta * e.value;
                     }
                 }
@@ -369,7 +372,10 @@ impl Sppm {
                 let ray = Scene::spawn_ray(si, si.frame.to_world(b.wo));
                 stats.rays += 1;
                 let hit = scene.intersect(&ray);
-                *ld += beta * b.weight * b.pdf * emission_at(scene, hit.as_ref(), ray.d);
+                *ld += beta
+                    * b.weight
+                    * b.pdf
+                    * emission_at(scene, hit.as_ref(), ray.d, NO_WAVELENGTHS);
             }
         }
         branches[picked].pdf
@@ -391,9 +397,13 @@ impl Sppm {
         let (i, _) = lights.sample_reuse(sampler.next_1d());
         let pmf = lights.pmf(i) as f32;
         let (u_pos, u_dir) = (sampler.next_2d(), sampler.next_2d());
-        let Some(er) =
-            scene.emitters[i].sample_ray(u_pos, u_dir, &scene.shapes, scene.bounding_sphere)
-        else {
+        let Some(er) = scene.emitters[i].sample_ray(
+            u_pos,
+            u_dir,
+            &scene.shapes,
+            scene.bounding_sphere,
+            NO_WAVELENGTHS,
+        ) else {
             return;
         };
         let mut beta = er.weight / pmf;
@@ -432,7 +442,7 @@ impl Sppm {
             if hits == self.max_depth {
                 break;
             }
-            scene.shading_bsdf_into(&si, &mut bsdf);
+            scene.shading_bsdf_into(&si, NO_WAVELENGTHS, &mut bsdf);
             bsdf.set_importance();
             let wi = si.frame.to_local(wi_world);
             let (u1, u2) = (sampler.next_1d(), sampler.next_2d());

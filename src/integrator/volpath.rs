@@ -34,6 +34,7 @@ use crate::sampler::SampleStream;
 use crate::sampling::mis_power;
 use crate::scene::Scene;
 use crate::shape::SurfaceInteraction;
+use crate::spectrum::NO_WAVELENGTHS;
 use crate::spectrum::{from_rgb, to_rgb, Spectrum};
 use glam::Vec3;
 
@@ -203,7 +204,7 @@ pub(crate) fn trace_shadow<W: ShadowWeights>(
             return;
         };
         total += si.t;
-        let bsdf = scene.shading_bsdf(&si);
+        let bsdf = scene.shading_bsdf(&si, NO_WAVELENGTHS);
         w.surface(
             to_rgb(bsdf.null_transmission(si.frame.to_local(-ray.d))),
             channel,
@@ -256,7 +257,7 @@ impl VolPathIntegrator {
             Vertex::Surface(si) => si.p,
             Vertex::Medium(p) => p,
         };
-        let ds = scene.sample_emitter_direction_at(p, sampler.next_2d())?;
+        let ds = scene.sample_emitter_direction_at(p, sampler.next_2d(), NO_WAVELENGTHS)?;
         if ds.pdf.is_nan() || ds.pdf <= 0.0 {
             return None;
         }
@@ -388,7 +389,7 @@ impl VolPathIntegrator {
                 si = super::pass_through_emitters(scene, ray.d, si, stats);
             }
             if !(depth == 0 && self.hide_emitters) {
-                let le = emission_at(scene, si.as_ref(), ray.d);
+                let le = emission_at(scene, si.as_ref(), ray.d, NO_WAVELENGTHS);
                 if le != Spectrum::ZERO {
                     let count_direct = depth == 0 || specular_chain;
                     let w = if count_direct {
@@ -405,7 +406,7 @@ impl VolPathIntegrator {
             let Some(si) = si else {
                 break;
             };
-            let bsdf = scene.bsdf_at(&si, &mut bsdf_buf);
+            let bsdf = scene.bsdf_at(&si, NO_WAVELENGTHS, &mut bsdf_buf);
             let wi = si.frame.to_local(-ray.d);
 
             // Next-event estimation.

@@ -35,6 +35,7 @@ use crate::medium::{mean3, safe_div3, Medium, MediumInteraction};
 use crate::sampler::SampleStream;
 use crate::scene::Scene;
 use crate::shape::SurfaceInteraction;
+use crate::spectrum::NO_WAVELENGTHS;
 use crate::spectrum::{from_rgb, to_rgb, Spectrum};
 use glam::Vec3;
 
@@ -193,7 +194,7 @@ impl VolPathMisIntegrator {
             Vertex::Surface(si) => si.p,
             Vertex::Medium(p) => p,
         };
-        let ds = scene.sample_emitter_direction_at(p, sampler.next_2d())?;
+        let ds = scene.sample_emitter_direction_at(p, sampler.next_2d(), NO_WAVELENGTHS)?;
         if ds.pdf.is_nan() || ds.pdf <= 0.0 {
             return None;
         }
@@ -318,7 +319,7 @@ impl VolPathMisIntegrator {
                 si = super::pass_through_emitters(scene, ray.d, si, stats);
             }
             if !(depth == 0 && self.hide_emitters) {
-                let le = emission_at(scene, si.as_ref(), ray.d);
+                let le = emission_at(scene, si.as_ref(), ray.d, NO_WAVELENGTHS);
                 if le != Spectrum::ZERO {
                     let count_direct = depth == 0 || specular_chain;
                     let w = if count_direct {
@@ -334,7 +335,7 @@ impl VolPathMisIntegrator {
             let Some(si) = si else {
                 break;
             };
-            let bsdf = scene.bsdf_at(&si, &mut bsdf_buf);
+            let bsdf = scene.bsdf_at(&si, NO_WAVELENGTHS, &mut bsdf_buf);
             let wi = si.frame.to_local(-ray.d);
 
             // Next-event estimation.

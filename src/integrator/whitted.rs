@@ -33,6 +33,7 @@ use crate::material::shading::Node;
 use crate::material::ShadingBsdf;
 use crate::sampler::SampleStream;
 use crate::scene::Scene;
+use crate::spectrum::NO_WAVELENGTHS;
 use arrayvec::ArrayVec;
 use glam::{Vec2, Vec3};
 
@@ -122,7 +123,8 @@ impl WhittedIntegrator {
                 // Camera rays pass through area emitters; the environment stays hidden.
                 hit = pass_through_emitters(scene, ray.d, hit, stats);
             } else {
-                result += weight * crate::integrator::emission_at(scene, hit.as_ref(), ray.d);
+                result += weight
+                    * crate::integrator::emission_at(scene, hit.as_ref(), ray.d, NO_WAVELENGTHS);
             }
             let Some(si) = hit else {
                 continue;
@@ -131,7 +133,7 @@ impl WhittedIntegrator {
                 continue;
             }
             stats.bounces += 1;
-            let bsdf = scene.shading_bsdf(&si);
+            let bsdf = scene.shading_bsdf(&si, NO_WAVELENGTHS);
             let wi = si.frame.to_local(-ray.d.normalize());
 
             // Direct light from every emitter.
@@ -145,7 +147,9 @@ impl WhittedIntegrator {
                     let mut sum = Spectrum::ZERO;
                     for _ in 0..n {
                         let u = sampler.next_2d();
-                        let Some(ds) = emitter.sample_direction(si.p, u, &scene.shapes) else {
+                        let Some(ds) =
+                            emitter.sample_direction(si.p, u, &scene.shapes, NO_WAVELENGTHS)
+                        else {
                             continue;
                         };
                         if ds.pdf.is_nan() || ds.pdf <= 0.0 {

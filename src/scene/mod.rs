@@ -20,11 +20,13 @@ use crate::simd::{
 };
 use crate::spectrum::Spectrum;
 use crate::texture::TextureContext;
-use glam::{Vec2, Vec3};
+use glam::{Vec2, Vec3, Vec4};
 use std::path::Path;
 
 /// A scene ready to render.
 pub struct Scene {
+    /// RGB or spectral: what the paths' [`Spectrum`] lanes hold.
+    pub mode: crate::spectrum::Mode,
     pub shapes: Vec<Shape>,
     /// The BSDFs of the shapes (and what they nest), with their textures.
     pub materials: Vec<Material>,
@@ -256,16 +258,17 @@ impl Scene {
 
     /// The BSDF at surface interaction `si`, its textures looked up.
     #[inline]
-    pub fn shading_bsdf(&self, si: &SurfaceInteraction) -> ShadingBsdf {
+    /// `wl`: the path's wavelengths (spectral mode; ignored in RGB mode).
+    pub fn shading_bsdf(&self, si: &SurfaceInteraction, wl: Vec4) -> ShadingBsdf {
         let mut out = ShadingBsdf::new();
-        self.shading_bsdf_into(si, &mut out);
+        self.shading_bsdf_into(si, wl, &mut out);
         out
     }
 
     /// [`Scene::shading_bsdf`] written into `out` in place (the integrators' hot loops keep
     /// one per path instead of copying a new one out of each call).
     #[inline]
-    pub fn shading_bsdf_into(&self, si: &SurfaceInteraction, out: &mut ShadingBsdf) {
+    pub fn shading_bsdf_into(&self, si: &SurfaceInteraction, wl: Vec4, out: &mut ShadingBsdf) {
         let shape = &self.shapes[si.shape as usize];
         let mesh = match &shape.geometry {
             crate::shape::ShapeGeometry::Mesh(m) => Some(m),
@@ -278,8 +281,7 @@ impl Scene {
                 prim: si.prim,
                 bary: si.bary,
                 mesh,
-                // WIP (issue 43): the path's wavelengths are not threaded here yet.
-                wavelengths: glam::Vec4::ZERO,
+                wavelengths: wl,
             },
             frame: si.frame,
             dp_du: si.dp_du,
@@ -297,13 +299,14 @@ impl Scene {
     pub fn bsdf_at<'a>(
         &'a self,
         si: &SurfaceInteraction,
+        wl: Vec4,
         buf: &'a mut ShadingBsdf,
     ) -> &'a ShadingBsdf {
         let material = self.shapes[si.shape as usize].material as usize;
         if let Some(Some(bsdf)) = self.uniform_bsdfs.get(material) {
             return bsdf;
         }
-        self.shading_bsdf_into(si, buf);
+        self.shading_bsdf_into(si, wl, buf);
         buf
     }
 
@@ -400,15 +403,22 @@ impl Scene {
         &self,
         si: &SurfaceInteraction,
         u: Vec2,
+        wl: Vec4,
     ) -> Option<DirectionSample> {
-        self.sample_emitter_direction_at(si.p, u)
+        self.sample_emitter_direction_at(si.p, u, wl)
     }
 
     /// [`Scene::sample_emitter_direction`] from a point `p` that need not lie on a surface
     /// (a scattering event in a medium). The width-1 instance of
     /// [`Scene::sample_emitter_direction_lanes`].
-    pub fn sample_emitter_direction_at(&self, p: Vec3, u: Vec2) -> Option<DirectionSample> {
-        let (ok, ds) = self.sample_emitter_direction_lanes(Scalar, true, p.into(), (u.x, u.y));
+    pub fn sample_emitter_direction_at(
+        &self,
+        p: Vec3,
+        u: Vec2,
+        wl: Vec4,
+    ) -> Option<DirectionSample> {
+        let (ok, ds) =
+            self.sample_emitter_direction_lanes(Scalar, true, p.into(), (u.x, u.y), &[wl]);
         ok.then(|| ds.lane(0))
     }
 
@@ -419,6 +429,7 @@ impl Scene {
         &self,
         p: Vec3,
         u: Vec2,
+        wl: Vec4,
     ) -> Option<(usize, DirectionSample)> {
         let (ok, i, ux, pmf) = self.pick_emitter_lanes(Scalar, true, u.x);
         if !ok {
@@ -430,6 +441,7 @@ impl Scene {
             p.into(),
             (ux, u.y),
             &self.shapes,
+            &[wl],
         );
         if !ok {
             return None;
@@ -449,6 +461,7 @@ impl Scene {
         m: L::M,
         p: V3<L::F>,
         u: (L::F, L::F),
+        wl: &[Vec4],
     ) -> (L::M, DirectionSamples<L>) {
         let (m, idx, ux, pmf) = self.pick_emitter_lanes(l, m, u.0);
         let mut out = DirectionSamples::zero(l);
@@ -466,6 +479,7 @@ impl Scene {
                     p,
                     (ux, u.1),
                     &self.shapes,
+                    wl,
                 );
                 if first {
                     // (every lane but those of `me` is either outside `m` or taken by a later
@@ -498,9 +512,9 @@ impl Scene {
 
     /// Radiance of the environment emitter arriving along −`d` (0 without one).
     #[inline]
-    pub fn eval_environment(&self, d: Vec3) -> Spectrum {
+    pub fn eval_environment(&self, d: Vec3, wl: Vec4) -> Spectrum {
         match self.environment {
-            Some(e) => self.emitters[e as usize].eval_environment(d.normalize()),
+            Some(e) => self.emitters[e as usize].eval_environment(d.normalize(), wl),
             None => Spectrum::ZERO,
         }
     }

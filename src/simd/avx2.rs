@@ -750,6 +750,7 @@ impl LaneU64 for U64x4x4 {
 
 impl Lanes for Avx2 {
     const WIDTH: usize = W;
+    type Wavelengths = [glam::Vec4; W];
     const BACKEND: Backend = Backend::Avx2;
     type M = M8x2;
     type F = F32x8x2;

@@ -530,6 +530,7 @@ impl LaneU64 for U64x16 {
 
 impl Lanes for Avx512 {
     const WIDTH: usize = W;
+    type Wavelengths = [glam::Vec4; W];
     const BACKEND: Backend = Backend::Avx512;
     type M = M16;
     type F = F32x16;

@@ -47,6 +47,7 @@ mod avx512;
 mod portable;
 mod scalar;
 mod v3;
+mod v4;
 
 #[cfg(test)]
 mod tests;
@@ -57,7 +58,11 @@ pub use avx2::Avx2;
 pub use avx512::Avx512;
 pub use portable::Portable16;
 pub use scalar::Scalar;
-pub use v3::{Spectrum, V3};
+pub use v3::V3;
+pub use v4::V4;
+
+/// A spectrum over lanes, as [`crate::spectrum::Spectrum`] is glam's `Vec4`.
+pub type Spectrum<F> = V4<F>;
 
 /// The widest backend's lane count: what fixed-size lane buffers hold.
 pub const MAX_WIDTH: usize = 16;
@@ -242,6 +247,14 @@ pub trait Lanes: Copy + Debug + Send + Sync + 'static {
     type F: LaneF32<M = Self::M, U = Self::U32>;
     type U32: LaneU32<M = Self::M>;
     type U64: LaneU64<M = Self::M, U32 = Self::U32>;
+    /// One set of four wavelengths (nm) per lane (spectral mode's paths): `[Vec4; WIDTH]`.
+    type Wavelengths: Copy
+        + Debug
+        + Default
+        + Send
+        + Sync
+        + AsRef<[glam::Vec4]>
+        + AsMut<[glam::Vec4]>;
 
     fn splat(self, x: f32) -> Self::F;
     fn splat_u32(self, x: u32) -> Self::U32;

@@ -465,6 +465,7 @@ impl LaneU64 for PU64 {
 
 impl Lanes for Portable16 {
     const WIDTH: usize = W;
+    type Wavelengths = [glam::Vec4; W];
     const BACKEND: Backend = Backend::Portable;
     type M = PMask;
     type F = PF32;

@@ -340,6 +340,7 @@ impl LaneU64 for u64 {
 
 impl Lanes for Scalar {
     const WIDTH: usize = 1;
+    type Wavelengths = [glam::Vec4; 1];
     const BACKEND: Backend = Backend::Scalar;
     type M = bool;
     type F = f32;

@@ -14,9 +14,6 @@ pub struct V3<F> {
     pub z: F,
 }
 
-/// An RGB spectrum over lanes, as [`crate::spectrum::Spectrum`] is glam's `Vec3`.
-pub type Spectrum<F> = V3<F>;
-
 impl<F: LaneF32> V3<F> {
     #[inline(always)]
     pub fn new(x: F, y: F, z: F) -> Self {

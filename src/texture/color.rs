@@ -37,7 +37,9 @@ impl ColorValue {
         let rgb32 = |c: glam::DVec3| [c.x as f32, c.y as f32, c.z as f32];
         match s {
             SpectralDesc::Srgb(c) => ColorValue::Srgb(spectral::srgb_model_fetch(rgb32(*c))),
-            SpectralDesc::D65(c) => ColorValue::D65(Box::new(D65Emission::from_rgb(rgb32(*c), 1.0))),
+            SpectralDesc::D65(c) => {
+                ColorValue::D65(Box::new(D65Emission::from_rgb(rgb32(*c), 1.0)))
+            }
             SpectralDesc::D65Scale(s) => ColorValue::D65(Box::new(D65Emission::new(*s as f32))),
             SpectralDesc::Uniform { value, lo, hi } => ColorValue::Uniform {
                 value: *value as f32,
@@ -85,6 +87,27 @@ impl ColorValue {
             ColorValue::Srgb(c) => Some(spectral::srgb_model_mean(*c)),
             ColorValue::Uniform { value, .. } => Some(*value),
             _ => None,
+        }
+    }
+
+    /// The mean value, for estimates of an emitter's power (which only decide how often it
+    /// is chosen): in RGB mode the mean of R, G, B (in f64, as before), in spectral mode the
+    /// mean over 360..830 nm at 5 nm steps.
+    pub fn mean_for_power(&self) -> f64 {
+        match self {
+            ColorValue::Rgb(s) => (s.x as f64 + s.y as f64 + s.z as f64) / 3.0,
+            _ => {
+                let mut sum = 0.0;
+                for k in 0..24 {
+                    // 4 wavelengths at a time: 96 points from 360 nm in 5 nm steps (the
+                    // last one, 835 nm, outside the range and weighted out below)
+                    let w = Vec4::new(0.0, 5.0, 10.0, 15.0) + (360.0 + 20.0 * k as f32);
+                    let v = self.eval(w);
+                    let inside = w.cmple(Vec4::splat(830.0));
+                    sum += Vec4::select(inside, v, Vec4::ZERO).element_sum() as f64;
+                }
+                sum / 95.0
+            }
         }
     }
 }

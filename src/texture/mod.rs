@@ -50,6 +50,15 @@ pub struct TextureContext<'a> {
 }
 
 impl TextureContext<'_> {
+    /// A context at surface coordinates `uv` with no mesh and wavelengths `wavelengths`
+    /// (spectral mode; ignored in RGB mode).
+    pub fn at_uv_wl(uv: Vec2, wavelengths: glam::Vec4) -> Self {
+        TextureContext {
+            wavelengths,
+            ..TextureContext::at_uv(uv)
+        }
+    }
+
     /// A context at surface coordinates `uv` with no mesh (for tests and constant lookups).
     pub fn at_uv(uv: Vec2) -> Self {
         TextureContext {
@@ -159,6 +168,12 @@ impl Texture {
             Texture::MeshAttribute(a) => a.scale,
             Texture::Volume(v) => v.mean(),
         }
+    }
+
+    /// Whether the texture varies over the surface (Mitsuba's `is_spatially_varying`): not
+    /// for constants, nor for spectral mode's constants (which vary with wavelength only).
+    pub fn is_spatially_varying(&self) -> bool {
+        !matches!(self, Texture::Constant { .. } | Texture::Spectral { .. })
     }
 
     /// Whether the texture is one value everywhere (then a BSDF using only such textures can

@@ -27,7 +27,7 @@ use crate::scene::Scene;
 use crate::shape::{triangle_interactions, ShapeGeometry, SurfaceInteractions, TriangleLanes};
 use crate::simd::MAX_WIDTH;
 use crate::simd::{dispatch, Backend, LaneF32, LaneMask, LaneProgram, LaneU32, Lanes, V3};
-use crate::spectrum::{from_rgb, Spectrum};
+use crate::spectrum::Spectrum;
 use glam::Vec2;
 
 /// One camera sample: its sample stream (past the camera's dimensions), its film position
@@ -165,7 +165,8 @@ fn trace_queue<L: Lanes>(
             let q = next;
             next += 1;
             let (sampler, pos, ray) = camera(q);
-            let Some(st) = path.start(ray) else {
+            // (RGB only: spectral mode renders with the scalar engine, `EngineChoice::resolve`)
+            let Some(st) = path.start(ray, glam::Vec4::ZERO) else {
                 // (max_depth 0: the path is black and takes no lane)
                 out[q] = (pos, Spectrum::ZERO);
                 continue;
@@ -229,11 +230,11 @@ fn trace_queue<L: Lanes>(
             match &hits[i] {
                 None => {
                     path.escape(scene, &mut st);
-                    p.finish(i, from_rgb(st.result.into()), out);
+                    p.finish(i, st.result.into(), out);
                 }
                 Some(_) => match path.at_surface(scene, &mut st, sis.shape.lane(i), || sis.lane(i))
                 {
-                    SurfaceStep::End => p.finish(i, from_rgb(st.result.into()), out),
+                    SurfaceStep::End => p.finish(i, st.result.into(), out),
                     SurfaceStep::Trace => p.st.put(l, i, &st),
                     SurfaceStep::Scatter { wi_world } => {
                         p.st.put(l, i, &st);
@@ -264,7 +265,7 @@ fn trace_queue<L: Lanes>(
             &mut bsdf_bufs,
         );
         for i in lanes_of(scatter.and_not(go).bits()) {
-            p.finish(i, from_rgb(p.st.result.lane(i)), out);
+            p.finish(i, p.st.result.lane(i), out);
         }
     }
 }

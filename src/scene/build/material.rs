@@ -8,8 +8,11 @@ use crate::bsdf::{BsdfParam, PluginCache};
 use crate::error::{Error, Result};
 use crate::material::{Material, MAX_NODES};
 use crate::scene::description::{BsdfDesc, TextureDesc, VolumeDesc};
+use crate::spectrum::Mode;
 use crate::texture::bitmap::{BitmapTexture, Format, TexImage};
-use crate::texture::{Checkerboard, MeshAttributeTexture, Texture, UvTransform, VolumeTexture};
+use crate::texture::{
+    Checkerboard, ColorValue, MeshAttributeTexture, Texture, UvTransform, VolumeTexture,
+};
 use glam::{DMat4, DVec3, Vec3};
 use std::path::PathBuf;
 use std::sync::Arc;
@@ -28,6 +31,8 @@ pub struct MaterialBuilder {
     plugins: PluginCache,
     /// World space to the space the scene is built in (volume textures are looked up there).
     pub shift: DMat4,
+    /// RGB or spectral: which form of each constant colour is built.
+    pub mode: Mode,
 }
 
 impl MaterialBuilder {
@@ -143,10 +148,46 @@ impl MaterialBuilder {
     /// A texture from its description.
     pub fn texture(&mut self, d: &TextureDesc) -> Result<Texture> {
         Ok(match d {
-            TextureDesc::Constant { rgb, scalar, .. } => Texture::Constant {
-                rgb: rgb.as_vec3(),
-                scalar: *scalar as f32,
-            },
+            TextureDesc::Constant { rgb, scalar, .. } if self.mode == Mode::Rgb => {
+                Texture::Constant {
+                    rgb: rgb.as_vec3(),
+                    scalar: *scalar as f32,
+                }
+            }
+            TextureDesc::Constant {
+                rgb,
+                scalar,
+                spectral,
+            } => {
+                let value = ColorValue::spectral(spectral);
+                match &value {
+                    // A flat spectrum is that value at every wavelength: the RGB form serves
+                    // (and keeps such materials prebuilt).
+                    ColorValue::Uniform { value: v, .. } if value.is_constant() => {
+                        Texture::Constant {
+                            rgb: Vec3::splat(*v),
+                            scalar: *v,
+                        }
+                    }
+                    _ => Texture::Spectral {
+                        scalar: value.spectral_mean().unwrap_or(*scalar as f32),
+                        value: Box::new(value),
+                        rgb: rgb.as_vec3(),
+                    },
+                }
+            }
+            TextureDesc::Bitmap(_) | TextureDesc::MeshAttribute { .. } | TextureDesc::Volume(_)
+                if self.mode == Mode::Spectral =>
+            {
+                return Err(Error::Invalid(format!(
+                    "spectral mode does not support {} textures yet (issue 43); render in RGB mode",
+                    match d {
+                        TextureDesc::Bitmap(_) => "bitmap",
+                        TextureDesc::MeshAttribute { .. } => "mesh_attribute",
+                        _ => "volume",
+                    }
+                )));
+            }
             TextureDesc::Raw(v) => Texture::Constant {
                 rgb: v.as_vec3(),
                 scalar: v.x as f32,

@@ -28,8 +28,8 @@ use crate::phase::{HenyeyGreenstein, PhaseFunction};
 use crate::sampler::Sampler;
 use crate::sampling::Distribution1D;
 use crate::shape::{Cylinder, Disk, Mesh, SdfGrid, Shape, ShapeGeometry, Sphere};
-use crate::spectrum::from_rgb_f64;
 use crate::texture::bitmap::Wrap;
+use crate::texture::ColorValue;
 use crate::volume::{constant::ConstVolume, GridVolume, Volume};
 use glam::{DMat3, DMat4, DVec3, Vec2, Vec3};
 use rayon::prelude::*;
@@ -77,6 +77,7 @@ pub fn build(desc: &SceneDescription) -> Result<Scene> {
     let mut shapes = Vec::new();
     let mut materials = material::MaterialBuilder::default();
     materials.shift = shift;
+    materials.mode = desc.mode;
     let mut emitters = Vec::new();
     let mut emitter_weights = Vec::new();
     let mut instances = Vec::new();
@@ -206,6 +207,12 @@ pub fn build(desc: &SceneDescription) -> Result<Scene> {
             )));
         }
     }
+    if desc.mode == crate::spectrum::Mode::Spectral && !desc.media.is_empty() {
+        return Err(Error::Invalid(
+            "spectral mode does not support participating media yet (issue 43); render in RGB mode"
+                .into(),
+        ));
+    }
     let media = desc
         .media
         .iter()
@@ -226,6 +233,7 @@ pub fn build(desc: &SceneDescription) -> Result<Scene> {
             )
         });
     let mut scene = Scene {
+        mode: desc.mode,
         shadow_passthrough,
         uniform_bsdfs: Scene::build_uniform_bsdfs(&materials.materials),
         shapes,
@@ -399,7 +407,7 @@ fn scene_emitter(
             intensity,
         } => Emitter::Point(PointEmitter {
             position: shift.transform_point3(*position).as_vec3(),
-            intensity: from_rgb_f64(intensity.rgb),
+            intensity: ColorValue::new(intensity, textures.mode),
         }),
         EmitterDesc::Spot {
             to_world,
@@ -415,7 +423,7 @@ fn scene_emitter(
             Emitter::Spot(
                 SpotEmitter::new(
                     shift * *to_world,
-                    from_rgb_f64(intensity.rgb),
+                    ColorValue::new(intensity, textures.mode),
                     *cutoff_angle,
                     *beam_width,
                     texture,
@@ -454,11 +462,17 @@ fn scene_emitter(
             irradiance,
         } => Emitter::Directional(DirectionalEmitter {
             direction: direction.as_vec3(),
-            irradiance: from_rgb_f64(irradiance.rgb),
+            irradiance: ColorValue::new(irradiance, textures.mode),
         }),
         EmitterDesc::Constant { radiance } => Emitter::Constant(ConstantEmitter {
-            radiance: from_rgb_f64(radiance.rgb),
+            radiance: ColorValue::new(radiance, textures.mode),
         }),
+        EmitterDesc::EnvMap { .. } if textures.mode == crate::spectrum::Mode::Spectral => {
+            return Err(Error::Invalid(
+                "spectral mode does not support the envmap emitter yet (issue 43); render in RGB mode"
+                    .into(),
+            ))
+        }
         EmitterDesc::EnvMap {
             filename,
             scale,

@@ -64,6 +64,9 @@ pub struct SceneDescription {
     pub media: Vec<MediumDesc>,
     /// Things the user should know that are not errors (clamped spectra, unused emitters).
     pub warnings: Vec<String>,
+    /// The mode the scene is rendered in: chosen by the user (`--mode`), not by the file;
+    /// RGB unless set. The build makes each colour parameter's RGB or spectral form of it.
+    pub mode: crate::spectrum::Mode,
 }
 
 impl SceneDescription {
@@ -569,6 +572,7 @@ pub fn from_xml(doc: &Document) -> Result<SceneDescription> {
         emitter_weights,
         media,
         warnings: cx.warnings.into_inner(),
+        mode: crate::spectrum::Mode::Rgb,
     })
 }
 
