@@ -54,7 +54,18 @@ impl Job {
 
     /// Loads a Mitsuba XML file with `-D name=value` overrides and builds it.
     pub fn load(path: &std::path::Path, defines: &[(String, String)]) -> Result<Job> {
-        Self::build(&Scene::load_description(path, defines)?)
+        Self::load_in(path, defines, Mode::Rgb)
+    }
+
+    /// [`Job::load`] rendering in `mode`.
+    pub fn load_in(
+        path: &std::path::Path,
+        defines: &[(String, String)],
+        mode: Mode,
+    ) -> Result<Job> {
+        let mut desc = Scene::load_description(path, defines)?;
+        desc.mode = mode;
+        Self::build(&desc)
     }
 
     /// Builds a scene from XML text; `path` locates it for messages and relative files.

@@ -80,7 +80,8 @@ fn one_bounce_short(job: &mut penumbra::render::Job) -> bool {
 #[ignore = "full tier: cargo test --release -- --ignored"]
 fn mitsuba_regression_suite() {
     let root = Path::new(env!("CARGO_MANIFEST_DIR")).join("validation/mitsuba-suite");
-    let scenes = suite::discover(&root).expect("the suite is in the repository");
+    let scenes = suite::discover(&root, penumbra::spectrum::Mode::Rgb)
+        .expect("the suite is in the repository");
     assert_eq!(scenes.len(), 41, "Mitsuba's suite has 41 scenes");
     let ptracer = scenes
         .iter()

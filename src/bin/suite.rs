@@ -3,7 +3,7 @@
 //! (with the share of passing pixel-channels and the mean difference), or the first construct
 //! penumbra does not support.
 //!
-//!     cargo run --release --bin suite [-- --scene SUBSTRING] [--threads N]
+//!     cargo run --release --bin suite [-- --scene SUBSTRING] [--threads N] [--mode spectral]
 
 use clap::Parser;
 use penumbra::study::suite::{self, Outcome};
@@ -25,11 +25,19 @@ struct Args {
     /// a scene it cannot render (media for `bdpt`) is reported unsupported.
     #[arg(long)]
     integrator: Option<String>,
+    /// `rgb` (default) or `spectral`: render in that mode and judge against Mitsuba's
+    /// references of that mode (`_ref_rgb` or `_ref_spectral`).
+    #[arg(long, default_value = "rgb", value_parser = parse_mode)]
+    mode: penumbra::spectrum::Mode,
+}
+
+fn parse_mode(s: &str) -> Result<penumbra::spectrum::Mode, String> {
+    penumbra::spectrum::Mode::from_name(s).ok_or_else(|| format!("'{s}': rgb or spectral"))
 }
 
 fn main() -> anyhow::Result<()> {
     let args = Args::parse();
-    let scenes = suite::discover(&args.root)?;
+    let scenes = suite::discover(&args.root, args.mode)?;
     println!("| scene | result, pixel-channels passing | mean diff R / G / B | spp | time (s) |");
     println!("|---|---|---|---:|---:|");
     let (mut passed, mut failed, mut unsupported) = (0, 0, 0);

@@ -16,10 +16,15 @@
 //! Only the reference's variance enters the test (the render is assumed as noisy as Mitsuba's),
 //! so a correct renderer with more variance than Mitsuba on a scene can fail it: the mean
 //! difference per channel is reported beside it.
+//!
+//! In spectral mode ([`discover`] with [`Mode::Spectral`]) each scene renders with
+//! `--mode spectral` against Mitsuba's spectral references `<name>_ref_spectral.exr` and
+//! `_ref_spectral_var.exr` (RGB images of `scalar_spectral` renders), by the same rule.
 
 use crate::error::Error;
 use crate::io::exr;
 use crate::render::{render, Job, RenderSettings};
+use crate::spectrum::Mode;
 use crate::study::stats::{normal_two_sided_p, sidak};
 use std::path::{Path, PathBuf};
 use std::time::Instant;
@@ -43,10 +48,17 @@ pub struct SuiteScene {
     pub integrator: String,
     pub reference: PathBuf,
     pub variance: PathBuf,
+    /// RGB or spectral: the mode it renders in, and which references judge it.
+    pub mode: Mode,
 }
 
-/// Every scene of the suite under `root`, sorted by name.
-pub fn discover(root: &Path) -> std::io::Result<Vec<SuiteScene>> {
+/// Every scene of the suite under `root`, sorted by name, to be rendered in `mode` and judged
+/// against that mode's references.
+pub fn discover(root: &Path, mode: Mode) -> std::io::Result<Vec<SuiteScene>> {
+    let kind = match mode {
+        Mode::Rgb => "rgb",
+        Mode::Spectral => "spectral",
+    };
     let mut scenes = Vec::new();
     let scenes_dir = root.join("tests/scenes");
     let mut groups: Vec<PathBuf> = std::fs::read_dir(&scenes_dir)?
@@ -76,9 +88,10 @@ pub fn discover(root: &Path) -> std::io::Result<Vec<SuiteScene>> {
             scenes.push(SuiteScene {
                 name: format!("{group_name}/{stem}"),
                 integrator: integrator.to_string(),
-                reference: refs.join(format!("{base}_ref_rgb.exr")),
-                variance: refs.join(format!("{base}_ref_rgb_var.exr")),
+                reference: refs.join(format!("{base}_ref_{kind}.exr")),
+                variance: refs.join(format!("{base}_ref_{kind}_var.exr")),
                 path,
+                mode,
             });
         }
     }
@@ -214,7 +227,7 @@ fn try_run(
         ("spp".to_string(), spp.to_string()),
         ("integrator".to_string(), scene.integrator.clone()),
     ];
-    let mut job = Job::load(&scene.path, &defines)?;
+    let mut job = Job::load_in(&scene.path, &defines, scene.mode)?;
     if !adjust(&mut job) {
         return Ok(None);
     }

@@ -96,6 +96,10 @@ pub struct ValidationScene {
     /// shares its reference with the scene's own entry.
     #[serde(default)]
     pub integrator: Option<String>,
+    /// `"rgb"` (default) or `"spectral"`: the mode penumbra renders the entry in (`--mode`);
+    /// a spectral entry's reference is rendered with Mitsuba's `llvm_ad_spectral`.
+    #[serde(default)]
+    pub mode: Option<String>,
     /// For the fast tests only: which checks they assert at `test_spp`, `"all"` (default),
     /// `"mean"` (the image mean only, for heavy-tailed scenes whose per-pixel z-test and
     /// slope cannot be resolved at the tests' sample counts: isolated fireflies in either
@@ -242,7 +246,18 @@ impl ValidationScene {
         if let Some(kind) = &self.integrator {
             desc.use_integrator(kind)?;
         }
+        desc.mode = self.render_mode()?;
         Job::build(&desc)
+    }
+
+    /// The entry's `mode` (RGB when absent).
+    pub fn render_mode(&self) -> Result<crate::spectrum::Mode> {
+        match self.mode.as_deref() {
+            None => Ok(crate::spectrum::Mode::Rgb),
+            Some(m) => crate::spectrum::Mode::from_name(m).ok_or_else(|| {
+                Error::Invalid(format!("{}: mode '{m}' is not rgb or spectral", self.name))
+            }),
+        }
     }
 
     /// Reads the reference and checks that it is the one the list asks for.

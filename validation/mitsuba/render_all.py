@@ -104,8 +104,13 @@ def main(argv=None):
         if reason is None:
             print(f"{scene['name']}: up to date", file=sys.stderr)
             continue
+        variant = args.variant
+        if scene.get("mode") == "spectral":
+            # A spectral entry's reference comes from Mitsuba's spectral variant.
+            variant = {"auto": "llvm_ad_spectral", "llvm_ad_rgb": "llvm_ad_spectral",
+                       "scalar_rgb": "scalar_spectral"}[variant]
         cmd = [os.path.join(REPO_ROOT, scene["file"]), os.path.join(REPO_ROOT, scene["reference"]),
-               "--spp", str(scene["reference_spp"]), "--variant", args.variant, "--quiet"]
+               "--spp", str(scene["reference_spp"]), "--variant", variant, "--quiet"]
         for k, v in scene.get("defines", {}).items():
             cmd += ["-D", f"{k}={v}"]
         if "mitsuba_integrator" in scene:

@@ -1,0 +1,237 @@
+//! Mitsuba 3's render regression suite in spectral mode (issue 43): every scene rendered with
+//! `--mode spectral` and judged, by Mitsuba's own rule (`penumbra::study::suite`), against
+//! Mitsuba's spectral references (`<name>_ref_spectral.exr`, scalar_spectral), plus the image
+//! mean test of tests/mitsuba_suite.rs (Šidák over the 123 scene-channels).
+//!
+//! The scenes spectral mode cannot render yet are listed in [`REFUSED`] with the construct
+//! that stops them; the test fails if one of them renders (the list is stale) or if another
+//! scene is refused. Negative controls: the mean test must flag the render × 1.01 wherever
+//! its power to see 1% is at least 95% (as tests/mitsuba_suite.rs), and each judged scene
+//! rendered in RGB mode against the same spectral reference must fail the checks wherever the
+//! RGB render's mean lies more than 8 standard errors from the spectral render's (the
+//! difference the issue describes; none of the scenes judged so far resolves it: their
+//! colours are greys, which both modes render alike. validation/scenes.toml's
+//! spectral-mitsuba-cbox is the scene that does).
+//!
+//! Full tier (`cargo test --release -- --ignored`): the suite's sample budget takes seconds
+//! per scene.
+
+use penumbra::spectrum::Mode;
+use penumbra::study::stats::{normal_two_sided_p, sidak};
+use penumbra::study::suite::{self, Outcome, SuiteScene};
+use std::path::Path;
+
+/// Scenes spectral mode refuses today, with (part of) the one-line reason it gives.
+const REFUSED: &[(&str, &str)] = &[
+    ("bsdf_spheres/test_arealight_path", "bitmap"),
+    ("bsdf_spheres/test_bumpmap_path", "bitmap"),
+    ("bsdf_spheres/test_constant_path", "bitmap"),
+    ("bsdf_spheres/test_envmap_path", "bitmap"),
+    (
+        "bsdf_spheres/test_normalmap_identity_roughconductor_path",
+        "envmap",
+    ),
+    ("bsdf_spheres/test_normalmap_path", "bitmap"),
+    ("bsdf_spheres/test_normalmap_roughconductor_path", "bitmap"),
+    ("bsdf_spheres/test_pointlight_path", "bitmap"),
+    ("bsdf_spheres/test_roughdielectric_path", "envmap"),
+    ("bsdf_spheres/test_roughplastic_linear_path", "envmap"),
+    ("bsdf_spheres/test_roughplastic_nonlinear_path", "envmap"),
+    ("bsdf_spheres/test_textured_diffuse_path", "bitmap"),
+    ("bsdf_spheres/test_textured_roughconductor_path", "envmap"),
+    ("bsdf_spheres/test_texturedprincipled1_path", "envmap"),
+    ("bsdf_spheres/test_texturedprincipled2_path", "envmap"),
+    ("bsdf_spheres/test_texturedprincipledthin_path", "envmap"),
+    ("infinite_mirrors/scene_path", "envmap"),
+    (
+        "mesh_attributes/test_mesh_attributes_1_face_direct",
+        "mesh_attribute",
+    ),
+    (
+        "mesh_attributes/test_mesh_attributes_3_face_direct",
+        "mesh_attribute",
+    ),
+    (
+        "mesh_attributes/test_mesh_attributes_3_vertex_direct",
+        "mesh_attribute",
+    ),
+    (
+        "participating_media/test_hetero_sigmat_albedo_volpath",
+        "envmap",
+    ),
+    ("participating_media/test_hetero_sigmat_volpath", "envmap"),
+    (
+        "participating_media/test_hetero_spectral_sigmat_no_scattering_volpath",
+        "envmap",
+    ),
+    (
+        "participating_media/test_hetero_spectral_sigmat_volpathmis",
+        "envmap",
+    ),
+    ("participating_media/test_homo_area_light_volpath", "media"),
+    (
+        "participating_media/test_homo_dielectric_envmap_volpath",
+        "envmap",
+    ),
+    (
+        "participating_media/test_homo_emitter_inside_medium_volpath",
+        "envmap",
+    ),
+    (
+        "participating_media/test_homo_null_envmap_volpath",
+        "envmap",
+    ),
+    (
+        "participating_media/test_homo_obj_inside_medium_volpath",
+        "envmap",
+    ),
+    (
+        "participating_media/test_homo_roughdielectric_spot_volpath",
+        "media",
+    ),
+    (
+        "participating_media/test_homo_spectral_sigmat_volpathmis",
+        "envmap",
+    ),
+    ("participating_media/test_surf_area_light_volpath", "envmap"),
+    ("projector/test_projector_textured_direct", "bitmap"),
+    ("spot_light/test_spot_direct", "bitmap"),
+    ("texture_interp/test_texture_interp_direct", "bitmap"),
+    ("various_emitters/test_various_emitters_ptracer", "bitmap"),
+];
+
+#[test]
+#[ignore = "full tier: cargo test --release -- --ignored"]
+fn mitsuba_suite_in_spectral_mode() {
+    let root = Path::new(env!("CARGO_MANIFEST_DIR")).join("validation/mitsuba-suite");
+    let scenes = suite::discover(&root, Mode::Spectral).expect("the suite is in the repository");
+    assert_eq!(scenes.len(), 41, "Mitsuba's suite has 41 scenes");
+    assert!(
+        scenes
+            .iter()
+            .all(|s| s.reference.exists() && s.variance.exists()),
+        "every scene has its spectral reference and variance"
+    );
+    let alpha = sidak(suite::SIGNIFICANCE, 3 * scenes.len());
+    let z_alpha = (1..200_000)
+        .map(|i| i as f64 * 1e-4)
+        .find(|z| normal_two_sided_p(*z) <= alpha)
+        .unwrap_or(10.0);
+    let mut controls = 0;
+    let mut failures = Vec::new();
+    let mut refused = Vec::new();
+    let mut judged = Vec::new();
+    for s in &scenes {
+        match suite::run(s, None) {
+            Outcome::Judged(j) => {
+                println!(
+                    "{:<62} {}  mean z {:+.2} / {:+.2} / {:+.2}  {} spp  {:.2} s",
+                    s.name,
+                    j.summary(),
+                    j.mean_z[0],
+                    j.mean_z[1],
+                    j.mean_z[2],
+                    j.spp,
+                    j.seconds
+                );
+                if !j.passed {
+                    failures.push(format!(
+                        "{} fails Mitsuba's test: {:.2}% of pixel-channels pass",
+                        s.name,
+                        100.0 * j.pass_fraction
+                    ));
+                }
+                for c in 0..3 {
+                    if normal_two_sided_p(j.mean_z[c].abs()) <= alpha {
+                        failures.push(format!(
+                            "{} channel {c}: image mean {:+.3}% off the reference, z = {:.2}",
+                            s.name,
+                            100.0 * j.mean_rel_diff[c],
+                            j.mean_z[c]
+                        ));
+                    }
+                    let shift = 0.01 * j.reference_mean[c].abs() / j.mean_se[c];
+                    if shift >= z_alpha + 1.645 {
+                        controls += 1;
+                        let bright = j.mean_z[c]
+                            + 0.01 * j.reference_mean[c] * (1.0 + j.mean_rel_diff[c])
+                                / j.mean_se[c];
+                        if normal_two_sided_p(bright.abs()) > alpha {
+                            failures.push(format!(
+                                "{} channel {c}: the render x 1.01 passes the mean test (z = {bright:.2})",
+                                s.name
+                            ));
+                        }
+                    }
+                }
+                judged.push((s.clone(), j));
+            }
+            Outcome::Unsupported(e) => {
+                println!("{:<62} refused: {e}", s.name);
+                match REFUSED.iter().find(|(n, _)| *n == s.name) {
+                    Some((_, why)) if e.contains(why) => refused.push(s.name.clone()),
+                    Some((_, why)) => failures.push(format!(
+                        "{} is refused for another reason than '{why}': {e}",
+                        s.name
+                    )),
+                    None => {
+                        failures.push(format!("{} does not render in spectral mode: {e}", s.name))
+                    }
+                }
+            }
+        }
+    }
+    for (name, _) in REFUSED {
+        if !refused.iter().any(|r| r == name) {
+            failures.push(format!("{name} renders now: take it off REFUSED"));
+        }
+    }
+    println!(
+        "spectral mode: {} judged, {} refused of {}",
+        judged.len(),
+        refused.len(),
+        scenes.len()
+    );
+    // Negative control: RGB mode against the spectral references.
+    let mut resolvable = 0;
+    for (s, j) in &judged {
+        let rgb = SuiteScene {
+            mode: Mode::Rgb,
+            ..s.clone()
+        };
+        let Outcome::Judged(r) = suite::run(&rgb, None) else {
+            failures.push(format!("{} does not render in RGB mode", s.name));
+            continue;
+        };
+        let sigmas = (0..3)
+            .map(|c| {
+                ((r.mean_rel_diff[c] - j.mean_rel_diff[c]) * j.reference_mean[c]).abs()
+                    / j.mean_se[c]
+            })
+            .fold(0.0, f64::max);
+        let caught = !r.passed || (0..3).any(|c| normal_two_sided_p(r.mean_z[c].abs()) <= alpha);
+        println!(
+            "{:<62} RGB mode: {}  mean {:+.3}% / {:+.3}% / {:+.3}%, {sigmas:.1} se from spectral: {}",
+            s.name,
+            r.summary(),
+            100.0 * r.mean_rel_diff[0],
+            100.0 * r.mean_rel_diff[1],
+            100.0 * r.mean_rel_diff[2],
+            if caught { "caught" } else { "not caught" }
+        );
+        if sigmas > 8.0 {
+            resolvable += 1;
+            if !caught {
+                failures.push(format!(
+                    "{}: the RGB render ({sigmas:.1} se from the spectral one) passes the spectral checks",
+                    s.name
+                ));
+            }
+        }
+    }
+    println!(
+        "controls: x 1.01 applies to {controls} scene-channels; RGB mode resolvable on {resolvable} scenes"
+    );
+    assert!(controls > 0, "the x 1.01 control applied nowhere");
+    assert!(failures.is_empty(), "{}", failures.join("\n"));
+}
