@@ -325,4 +325,57 @@ fn command_line_parts_and_merge() {
             "{args:?}: {e}"
         );
     }
+    // Spectral mode (issue 43): its parts merge to the one-process spectral render bit for
+    // bit, and a spectral part does not merge with an RGB one (the mode is part of the
+    // scene's identity).
+    let spectral = |i: u32| dir.join(format!("s{i}.pnbr")).display().to_string();
+    for i in 0..2 {
+        let o = run(&[
+            "render",
+            s,
+            "-D",
+            "res=16",
+            "--spp",
+            "600",
+            "--part",
+            &format!("{i}/2"),
+            "--mode",
+            "spectral",
+            "--quiet",
+            "-o",
+            &spectral(i),
+        ]);
+        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    }
+    let merged_s = dir.join("merged-spectral.exr").display().to_string();
+    let o = run(&[
+        "merge",
+        &spectral(0),
+        &spectral(1),
+        "--quiet",
+        "-o",
+        &merged_s,
+    ]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let single_s = dir.join("single-spectral.exr").display().to_string();
+    let o = run(&[
+        "render", s, "-D", "res=16", "--spp", "600", "--mode", "spectral", "--quiet", "-o",
+        &single_s,
+    ]);
+    assert!(o.status.success());
+    let (a, b) = (
+        penumbra::io::exr::read(std::path::Path::new(&merged_s)).expect("merged"),
+        penumbra::io::exr::read(std::path::Path::new(&single_s)).expect("single"),
+    );
+    assert!(
+        a.rgb == b.rgb,
+        "merged spectral parts differ from the one-process render"
+    );
+    let rgb_single = penumbra::io::exr::read(std::path::Path::new(&single)).expect("single");
+    assert!(
+        a.rgb != rgb_single.rgb,
+        "spectral and RGB renders are the same image"
+    );
+    let e = err_line(&run(&["merge", &spectral(0), &p(1), "-o", "x.exr"]));
+    assert!(e.contains("or --mode"), "{e}");
 }

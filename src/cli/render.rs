@@ -297,6 +297,9 @@ pub(crate) fn run_render(args: RenderArgs) -> Result<()> {
     if let Some(n) = args.sensor {
         desc.select_sensor(n)?;
     }
+    // (the mode is part of the scene's identity: checkpoints and parts of one mode do not
+    // resume or merge with the other's)
+    desc.mode = args.mode.into();
     let scene_hash = progressive::scene_hash(&desc);
     // Mitsuba's integrator `timeout` is the render's time limit unless --time-limit is given
     // (a part's samples are fixed by its plan: it has none).
@@ -312,7 +315,6 @@ pub(crate) fn run_render(args: RenderArgs) -> Result<()> {
     if let Some(kind) = &args.integrator {
         desc.use_integrator(kind)?;
     }
-    desc.mode = args.mode.into();
     let mut job = Job::build(&desc)?;
     job.engine = engine(&args)?;
     // (fails here, before any work, if a named lane backend cannot run)

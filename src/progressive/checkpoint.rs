@@ -321,7 +321,7 @@ impl Checkpoint {
             ));
         }
         if self.scene_hash != s.scene_hash {
-            return refuse("from another scene (or other -D values or mesh files)".into());
+            return refuse("from another scene (or other -D values, mesh files or --mode)".into());
         }
         if self.seed != s.seed {
             return refuse(format!(

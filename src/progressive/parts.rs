@@ -263,7 +263,7 @@ fn check_part_resume(c: &Checkpoint, fresh: &Checkpoint, end: u64) -> Result<()>
         ));
     }
     if c.scene_hash != fresh.scene_hash {
-        return refuse("from another scene (or other -D values or mesh files)".into());
+        return refuse("from another scene (or other -D values, mesh files or --mode)".into());
     }
     if c.seed != fresh.seed {
         return refuse(format!(
@@ -331,7 +331,7 @@ fn plan_merge(parts: &[(PathBuf, CheckpointHeader)], target_spp: Option<u64>) ->
             ));
         }
         if c.scene_hash != first.scene_hash {
-            return differs("from another scene (or other -D values or mesh files)");
+            return differs("from another scene (or other -D values, mesh files or --mode)");
         }
         if c.seed != first.seed {
             return differs(&format!("with another seed ({} vs {})", c.seed, first.seed));
