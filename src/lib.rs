@@ -29,6 +29,7 @@ pub mod sampling;
 pub mod scene;
 pub mod shape;
 pub mod simd;
+pub mod spectral;
 pub mod spectrum;
 pub mod texture;
 pub mod volume;

@@ -100,7 +100,7 @@ pub const CIE_SAMPLES: usize = 95;
 #[allow(clippy::excessive_precision)]
 pub const CIE_Y_NORMALIZATION: f64 = 1.0 / 106.750_259_399_414_062_5;
 /// Scale of the D65 table that gives it luminance 1, Mitsuba's `MI_CIE_D65_NORMALIZATION`.
-const D65_NORMALIZATION: f64 = 1.0 / 98.997_417_518_762_55;
+pub(crate) const D65_NORMALIZATION: f64 = 1.0 / 98.997_417_518_762_55;
 /// Number of wavelengths at which `spectrum_list_to_srgb` samples a list.
 const STEPS: usize = 1000;
 
@@ -108,7 +108,7 @@ const STEPS: usize = 1000;
 // CVRL table, the values Mitsuba uses). Mitsuba stores them as `f32` (written as double literals
 // cast to float), so they are rounded through `f32` when read, see `table`.
 #[rustfmt::skip]
-const CIE_X: [f64; CIE_SAMPLES] = [
+pub(crate) const CIE_X: [f64; CIE_SAMPLES] = [
     0.0001299, 0.0002321, 0.0004149, 0.0007416, 0.001368, 0.002236, 0.004243, 0.00765, 0.01431,
     0.02319, 0.04351, 0.07763, 0.13438, 0.21477, 0.2839, 0.3285, 0.34828, 0.34806, 0.3362, 0.3187,
     0.2908, 0.2511, 0.19536, 0.1421, 0.09564, 0.05795001, 0.03201, 0.0147, 0.0049, 0.0024, 0.0093,
@@ -122,7 +122,7 @@ const CIE_X: [f64; CIE_SAMPLES] = [
     0.000003581652, 0.000002522525, 0.000001776509, 0.000001251141,
 ];
 #[rustfmt::skip]
-const CIE_Y: [f64; CIE_SAMPLES] = [
+pub(crate) const CIE_Y: [f64; CIE_SAMPLES] = [
     0.000003917, 0.000006965, 0.00001239, 0.00002202, 0.000039, 0.000064, 0.00012, 0.000217,
     0.000396, 0.00064, 0.00121, 0.00218, 0.004, 0.0073, 0.0116, 0.01684, 0.023, 0.0298, 0.038,
     0.048, 0.06, 0.0739, 0.09098, 0.1126, 0.13902, 0.1693, 0.20802, 0.2586, 0.323, 0.4073, 0.503,
@@ -135,7 +135,7 @@ const CIE_Y: [f64; CIE_SAMPLES] = [
     0.00000091093, 0.00000064153, 0.00000045181,
 ];
 #[rustfmt::skip]
-const CIE_Z: [f64; CIE_SAMPLES] = [
+pub(crate) const CIE_Z: [f64; CIE_SAMPLES] = [
     0.0006061, 0.001086, 0.001946, 0.003486, 0.006450001, 0.01054999, 0.02005001, 0.03621,
     0.06785001, 0.1102, 0.2074, 0.3713, 0.6456, 1.0390501, 1.3856, 1.62296, 1.74706, 1.7826,
     1.77211, 1.7441, 1.6692, 1.5281, 1.28764, 1.0419, 0.8129501, 0.6162, 0.46518, 0.3533, 0.272,
@@ -146,7 +146,7 @@ const CIE_Z: [f64; CIE_SAMPLES] = [
     0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0,
 ];
 #[rustfmt::skip]
-const D65: [f32; CIE_SAMPLES] = [
+pub(crate) const D65: [f32; CIE_SAMPLES] = [
     46.6383, 49.3637, 52.0891, 51.0323, 49.9755, 52.3118, 54.6482, 68.7015, 82.7549, 87.1204,
     91.486, 92.4589, 93.4318, 90.057, 86.6823, 95.7736, 104.865, 110.936, 117.008, 117.41, 117.812,
     116.336, 114.861, 115.392, 115.923, 112.367, 108.811, 109.082, 109.354, 108.578, 107.802,
