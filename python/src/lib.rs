@@ -320,12 +320,19 @@ impl Scene {
 }
 
 /// Loads a Mitsuba 3 XML scene; keyword arguments set its `<default>` parameters as `-D`
-/// does (`penumbra.load("cbox.xml", res=64, integrator="path")`).
+/// does (`penumbra.load("cbox.xml", res=64, integrator="path")`). `mode` is `"rgb"` (the
+/// default) or `"spectral"`, as `render --mode` (Mitsuba's `*_rgb` or `*_spectral` variants).
 #[pyfunction]
-#[pyo3(signature = (path, **defines))]
-fn load(path: PathBuf, defines: Option<&Bound<'_, PyDict>>) -> PyResult<Scene> {
+#[pyo3(signature = (path, mode="rgb", **defines))]
+fn load(path: PathBuf, mode: &str, defines: Option<&Bound<'_, PyDict>>) -> PyResult<Scene> {
     let defines = defines_of(defines)?;
-    let desc = penumbra::scene::Scene::load_description(&path, &defines).map_err(err)?;
+    let mode = penumbra::spectrum::Mode::from_name(mode).ok_or_else(|| {
+        pyo3::exceptions::PyValueError::new_err(format!(
+            "mode '{mode}' is not \"rgb\" or \"spectral\""
+        ))
+    })?;
+    let mut desc = penumbra::scene::Scene::load_description(&path, &defines).map_err(err)?;
+    desc.mode = mode;
     let job = penumbra::render::Job::build(&desc).map_err(err)?;
     Ok(Scene {
         path,

@@ -69,6 +69,19 @@ def test_render_equals_the_cli_exr_bit_for_bit(cbox, tmp_path):
     assert attrs["spp"] == str(cbox.spp) == "64"
 
 
+def test_spectral_mode_equals_the_cli_bit_for_bit(tmp_path):
+    """mode="spectral" renders what `render --mode spectral` writes, and not the RGB image."""
+    out = tmp_path / "cli-spectral.exr"
+    run_cli("render", CBOX, "-D", "res=16", "--spp", 8, "--seed", 3, "--mode", "spectral", "-q",
+            "-o", out)
+    rgb, _, _ = penumbra.read_exr(out)
+    spectral = penumbra.load(CBOX, mode="spectral", res=16)
+    assert np.array_equal(rgb, spectral.render(spp=8, seed=3))
+    assert not np.array_equal(rgb, penumbra.load(CBOX, res=16).render(spp=8, seed=3))
+    with pytest.raises(ValueError, match="spectral"):
+        penumbra.load(CBOX, mode="mono")
+
+
 UNIT_RADIANCE = (18.387, 13.9873, 6.75357)
 
 
