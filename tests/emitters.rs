@@ -56,7 +56,12 @@ fn pdf_and_radiance(scene: &Job, p: Vec3, d: Vec3) -> (f64, Spectrum) {
         Some(hit) => {
             let le = match scene.scene.shapes[hit.shape as usize].emitter {
                 Some(e) => match &scene.scene.emitters[e as usize] {
-                    Emitter::Area(a) => a.eval(&hit, -d, &scene.scene.shapes),
+                    Emitter::Area(a) => a.eval(
+                        &hit,
+                        -d,
+                        &scene.scene.shapes,
+                        penumbra::spectrum::NO_WAVELENGTHS,
+                    ),
                     _ => Spectrum::ZERO,
                 },
                 None => Spectrum::ZERO,
@@ -65,7 +70,9 @@ fn pdf_and_radiance(scene: &Job, p: Vec3, d: Vec3) -> (f64, Spectrum) {
         }
         None => (
             scene.scene.pdf_environment(d) as f64,
-            scene.scene.eval_environment(d),
+            scene
+                .scene
+                .eval_environment(d, penumbra::spectrum::NO_WAVELENGTHS),
         ),
     }
 }
@@ -89,7 +96,10 @@ fn check_sampling(name: &str, scene: &Job, p: Vec3, seed: u64) {
         n,
         |i| {
             let u = SampleStream::new(seed, i as u64, 0).next_2d();
-            let ds = scene.scene.sample_emitter_direction(&si, u)?;
+            let ds =
+                scene
+                    .scene
+                    .sample_emitter_direction(&si, u, penumbra::spectrum::NO_WAVELENGTHS)?;
             // Delta samples have no density; occluded samples (behind another emitter)
             // contribute nothing, and the density of the rest at d is that of the emitter
             // a ray along d finds first.
@@ -483,13 +493,17 @@ fn nee_irradiance(scene: &Job, si: &SurfaceInteraction, n: usize, seed: u64) -> 
     let (mut s1, mut s2) = (0.0, 0.0);
     for i in 0..n {
         let u = SampleStream::new(seed, i as u64, 0).next_2d();
-        let v = match scene.scene.sample_emitter_direction(si, u) {
-            Some(ds) => {
-                let cos = ds.d.dot(si.frame.n).max(0.0) as f64;
-                ds.radiance.x as f64 * cos / ds.pdf as f64
-            }
-            None => 0.0,
-        };
+        let v =
+            match scene
+                .scene
+                .sample_emitter_direction(si, u, penumbra::spectrum::NO_WAVELENGTHS)
+            {
+                Some(ds) => {
+                    let cos = ds.d.dot(si.frame.n).max(0.0) as f64;
+                    ds.radiance.x as f64 * cos / ds.pdf as f64
+                }
+                None => 0.0,
+            };
         s1 += v;
         s2 += v * v;
     }
@@ -551,7 +565,11 @@ fn analytic_irradiance_from_disk_sphere_and_constant_environment() {
         for j in 0..np {
             let phi = 2.0 * PI * (j as f64 + 0.5) / np as f64;
             let d = Vec3::new((st * phi.cos()) as f32, ct as f32, (st * phi.sin()) as f32);
-            exact += s.scene.eval_environment(d).x as f64 * ct;
+            exact += s
+                .scene
+                .eval_environment(d, penumbra::spectrum::NO_WAVELENGTHS)
+                .x as f64
+                * ct;
         }
     }
     exact *= 2.0 * PI / (nt * np) as f64;
@@ -567,7 +585,7 @@ fn delta_lights_give_mitsubas_values() {
     );
     let ds = s
         .scene
-        .sample_emitter_direction(&si, Vec2::splat(0.5))
+        .sample_emitter_direction(&si, Vec2::splat(0.5), penumbra::spectrum::NO_WAVELENGTHS)
         .unwrap();
     assert!(ds.delta && ds.pdf == 1.0 && (ds.dist - 2.0).abs() < 1e-6);
     assert!((ds.radiance - Spectrum::splat(0.75)).abs().max_element() < 1e-6);
@@ -595,7 +613,7 @@ fn delta_lights_give_mitsubas_values() {
         let si = reference_point(p, -Vec3::Z);
         let got = s
             .scene
-            .sample_emitter_direction(&si, Vec2::splat(0.5))
+            .sample_emitter_direction(&si, Vec2::splat(0.5), penumbra::spectrum::NO_WAVELENGTHS)
             .map_or(0.0, |ds| ds.radiance.x * 4.0);
         assert!(
             (got - expected).abs() < 2e-4,
@@ -608,7 +626,7 @@ fn delta_lights_give_mitsubas_values() {
     );
     let ds = s
         .scene
-        .sample_emitter_direction(&si, Vec2::splat(0.3))
+        .sample_emitter_direction(&si, Vec2::splat(0.3), penumbra::spectrum::NO_WAVELENGTHS)
         .unwrap();
     assert!(ds.delta && ds.is_infinite() && (ds.d - Vec3::Z).length() < 1e-6);
     assert_eq!(ds.radiance, Spectrum::splat(2.0));
@@ -746,6 +764,7 @@ fn emitter_rays_carry_the_emitted_power() {
                 rng.next_2d(),
                 &s.scene.shapes,
                 s.scene.bounding_sphere,
+                penumbra::spectrum::NO_WAVELENGTHS,
             ) else {
                 continue;
             };

@@ -80,9 +80,13 @@ fn prebuilt_bsdfs_equal_the_ones_built_at_each_hit() {
             let Some(si) = scene.scene.intersect(&ray) else {
                 continue;
             };
-            let reference = scene.scene.shading_bsdf(&si);
+            let reference = scene
+                .scene
+                .shading_bsdf(&si, penumbra::spectrum::NO_WAVELENGTHS);
             let buf_at: *const penumbra::material::ShadingBsdf = &buf;
-            let bsdf = scene.scene.bsdf_at(&si, &mut buf);
+            let bsdf = scene
+                .scene
+                .bsdf_at(&si, penumbra::spectrum::NO_WAVELENGTHS, &mut buf);
             if std::ptr::eq(bsdf, buf_at) {
                 built += 1;
             } else {

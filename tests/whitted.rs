@@ -44,9 +44,13 @@ fn plane_xml(max_depth: u32, extra: &str) -> String {
 fn li(scene: &Job, pixel: Vec2, stream: u64) -> Spectrum {
     let ray = scene.scene.camera.generate_ray(pixel / 16.0);
     let mut sampler = SampleStream::new(stream, 7, 0);
-    scene
-        .integrator
-        .li(&scene.scene, ray, &mut sampler, &mut PathStats::default())
+    scene.integrator.li(
+        &scene.scene,
+        ray,
+        penumbra::spectrum::NO_WAVELENGTHS,
+        &mut sampler,
+        &mut PathStats::default(),
+    )
 }
 
 /// The plane's direct light from the point light at the camera-relative point `p`:
@@ -153,9 +157,13 @@ fn centre_pixel_with_stats(scene: &Job) -> (Spectrum, PathStats) {
     let ray = scene.scene.camera.generate_ray(Vec2::splat(0.5));
     let mut stats = PathStats::default();
     let mut sampler = SampleStream::new(0, 7, 0);
-    let l = scene
-        .integrator
-        .li(&scene.scene, ray, &mut sampler, &mut stats);
+    let l = scene.integrator.li(
+        &scene.scene,
+        ray,
+        penumbra::spectrum::NO_WAVELENGTHS,
+        &mut sampler,
+        &mut stats,
+    );
     (l, stats)
 }
 

@@ -175,12 +175,20 @@ mod tests {
         let e = crate::spectrum::rgb(2.0, 3.0, 4.0);
         let p = ProjectorEmitter::new(to_world, Texture::constant(e.truncate()), 1.0, 90.0, 1.0)
             .unwrap();
-        let ds = p.sample_direction(Vec3::ZERO).unwrap();
+        let ds = p
+            .sample_direction(Vec3::ZERO, crate::spectrum::NO_WAVELENGTHS)
+            .unwrap();
         // Radiance of a white Lambertian plane: (1/π) cos θ · L.
         let radiance = ds.radiance * ds.d.z / std::f32::consts::PI;
         assert!((radiance - e).abs().max_element() < 1e-5, "{radiance}");
-        assert!(p.sample_direction(Vec3::new(0.99, 0.0, 0.0)).is_some());
-        assert!(p.sample_direction(Vec3::new(1.01, 0.0, 0.0)).is_none());
-        assert!(p.sample_direction(Vec3::new(0.0, 0.0, 2.0)).is_none());
+        assert!(p
+            .sample_direction(Vec3::new(0.99, 0.0, 0.0), crate::spectrum::NO_WAVELENGTHS)
+            .is_some());
+        assert!(p
+            .sample_direction(Vec3::new(1.01, 0.0, 0.0), crate::spectrum::NO_WAVELENGTHS)
+            .is_none());
+        assert!(p
+            .sample_direction(Vec3::new(0.0, 0.0, 2.0), crate::spectrum::NO_WAVELENGTHS)
+            .is_none());
     }
 }

@@ -162,7 +162,14 @@ mod tests {
     /// (z tan θ_cutoff): the axis at the centre, the cone's edge at the texture's border.
     #[test]
     fn texture_coordinates_span_the_cutoff_cone() {
-        let spot = SpotEmitter::new(DMat4::IDENTITY, Spectrum::ONE, 30.0, 20.0, None).unwrap();
+        let spot = SpotEmitter::new(
+            DMat4::IDENTITY,
+            ColorValue::Rgb(crate::spectrum::Spectrum::ONE),
+            30.0,
+            20.0,
+            None,
+        )
+        .unwrap();
         let c = 30f32.to_radians();
         let at = |theta: f32, phi: f32| {
             let (s, z) = theta.sin_cos();
