@@ -3,7 +3,7 @@
 //! (with the share of passing pixel-channels and the mean difference), or the first construct
 //! penumbra does not support.
 //!
-//!     cargo run --release --bin suite [-- --scene SUBSTRING] [--threads N]
+//!     cargo run --release --bin suite [-- --scene SUBSTRING] [--threads N] [--mode spectral]
 
 use clap::Parser;
 use penumbra::study::suite::{self, Outcome};
@@ -25,11 +25,20 @@ struct Args {
     /// a scene it cannot render (media for `bdpt`) is reported unsupported.
     #[arg(long)]
     integrator: Option<String>,
+    /// `spectral`: render in spectral mode (as `render --mode spectral`) and judge against
+    /// Mitsuba's spectral references (`_ref_spectral.exr`).
+    #[arg(long, default_value = "rgb")]
+    mode: String,
 }
 
 fn main() -> anyhow::Result<()> {
     let args = Args::parse();
-    let scenes = suite::discover(&args.root)?;
+    let mut scenes = suite::discover(&args.root)?;
+    match args.mode.as_str() {
+        "rgb" => {}
+        "spectral" => scenes = scenes.into_iter().map(|s| s.spectral()).collect(),
+        m => anyhow::bail!("--mode must be rgb or spectral, not {m}"),
+    }
     println!("| scene | result, pixel-channels passing | mean diff R / G / B | spp | time (s) |");
     println!("|---|---|---|---:|---:|");
     let (mut passed, mut failed, mut unsupported) = (0, 0, 0);

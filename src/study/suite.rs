@@ -20,6 +20,7 @@
 use crate::error::Error;
 use crate::io::exr;
 use crate::render::{render, Job, RenderSettings};
+use crate::spectrum::Mode;
 use crate::study::stats::{normal_two_sided_p, sidak};
 use std::path::{Path, PathBuf};
 use std::time::Instant;
@@ -43,6 +44,26 @@ pub struct SuiteScene {
     pub integrator: String,
     pub reference: PathBuf,
     pub variance: PathBuf,
+    /// RGB (the `_ref_rgb` references) or spectral (`_ref_spectral`, see
+    /// [`SuiteScene::spectral`]).
+    pub mode: Mode,
+}
+
+impl SuiteScene {
+    /// The same scene rendered in spectral mode and judged against Mitsuba's spectral
+    /// reference (`<name>_ref_spectral.exr` and its variance).
+    pub fn spectral(mut self) -> Self {
+        let swap = |p: &Path| {
+            let name = p
+                .file_name()
+                .map(|n| n.to_string_lossy().replace("_ref_rgb", "_ref_spectral"));
+            p.with_file_name(name.unwrap_or_default())
+        };
+        self.reference = swap(&self.reference);
+        self.variance = swap(&self.variance);
+        self.mode = Mode::Spectral;
+        self
+    }
 }
 
 /// Every scene of the suite under `root`, sorted by name.
@@ -79,6 +100,7 @@ pub fn discover(root: &Path) -> std::io::Result<Vec<SuiteScene>> {
                 reference: refs.join(format!("{base}_ref_rgb.exr")),
                 variance: refs.join(format!("{base}_ref_rgb_var.exr")),
                 path,
+                mode: Mode::Rgb,
             });
         }
     }
@@ -214,7 +236,9 @@ fn try_run(
         ("spp".to_string(), spp.to_string()),
         ("integrator".to_string(), scene.integrator.clone()),
     ];
-    let mut job = Job::load(&scene.path, &defines)?;
+    let mut desc = crate::scene::Scene::load_description(&scene.path, &defines)?;
+    desc.mode = scene.mode;
+    let mut job = Job::build(&desc)?;
     if !adjust(&mut job) {
         return Ok(None);
     }
