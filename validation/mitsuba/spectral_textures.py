@@ -17,7 +17,14 @@ then, in the scalar_spectral variant:
   wavelengths l (nm) for the bitmap loaded with that filter_type and wrap_mode;
 - `bitmap_mean FILTER WRAP m`: tex.mean();
 - `envmap SCALE dx dy dz l0 l1 l2 l3 s0 s1 s2 s3`: the envmap's eval(si) with si.wi = -d,
-  d the direction the radiance arrives from (an escaping ray's direction), at wavelengths l.
+  d the direction the radiance arrives from (an escaping ray's direction), at wavelengths l;
+- a two-triangle mesh (vertices (0,0,0), (1,0,0), (0,1,0), (1,1,0); faces (0,1,2),
+  (1,3,2)) with attributes `vertex_color`, `face_color` (converted to coefficients by
+  Mitsuba's add_attribute) and `vertex_foo` (three channels, not a colour: kept as given):
+  `attr NAME values...` the attribute as given, `attr_stored NAME values...` Mitsuba's
+  attribute_buffer after loading, and `mesh_eval NAME prim b1 b2 l0..l3 s0..s3`
+  mesh.eval_attribute(NAME, si) at barycentrics (1 - b1 - b2, b1, b2) of triangle prim
+  (si.p placed there; on triangle 0 Mitsuba's least-squares barycentrics are exactly b1, b2).
 
 Floats are printed with 9 significant digits (f32 round-trips exactly).
 
@@ -132,6 +139,41 @@ def main():
                         + [f(val[k]) for k in range(4)]
                     )
                 )
+
+    attrs = {
+        "vertex_color": [0.8, 0.1, 0.05, 0.1, 0.6, 0.2, 0.05, 0.1, 0.7, 0.5, 0.5, 0.5],
+        "face_color": [0.3, 0.25, 0.2, 0.96, 0.03, 0.52],
+        "vertex_foo": [1e-4, -0.1, 20.0, -2e-4, 0.2, -40.0, 0.0, 0.0, 1.5, 1e-5, 0.0, -3.0],
+    }
+    mesh = mi.Mesh("m", vertex_count=4, face_count=2, has_vertex_normals=False,
+                   has_vertex_texcoords=False)
+    params = mi.traverse(mesh)
+    params["vertex_positions"] = [0, 0, 0, 1, 0, 0, 0, 1, 0, 1, 1, 0]
+    params["faces"] = [0, 1, 2, 1, 3, 2]
+    params.update()
+    for name, values in attrs.items():
+        mesh.add_attribute(name, 3, values)
+        lines.append(" ".join(["attr", name] + [f(np.float32(x)) for x in values]))
+        lines.append(" ".join(["attr_stored", name] + [f(x) for x in mesh.attribute_buffer(name)]))
+    bary = [(0.0, 0.0), (1.0, 0.0), (0.0, 1.0), (0.25, 0.5), (1 / 3, 1 / 3), (0.7, 0.2)]
+    bary += [tuple(x) for x in rng.dirichlet([1, 1, 1], size=6)[:, 1:]]
+    for name in attrs:
+        for prim in (0, 1) if name == "face_color" else (0,):
+            for (b1, b2) in bary:
+                b1, b2 = np.float32(b1), np.float32(b2)
+                for wl in WAVELENGTHS:
+                    si = mi.SurfaceInteraction3f()
+                    si.p = mi.Point3f(float(b1), float(b2), 0.0)
+                    si.prim_index = prim
+                    si.wavelengths = mi.Spectrum(wl)
+                    val = mesh.eval_attribute(name, si)
+                    lines.append(
+                        " ".join(
+                            ["mesh_eval", name, str(prim), f(b1), f(b2)]
+                            + [f(x) for x in wl]
+                            + [f(val[k]) for k in range(4)]
+                        )
+                    )
 
     with open(out_path, "w") as fh:
         fh.write("\n".join(lines) + "\n")
