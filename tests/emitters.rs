@@ -14,7 +14,6 @@ use penumbra::sampler::SampleStream;
 use penumbra::scene::Scene;
 use penumbra::shape::SurfaceInteraction;
 use penumbra::spectrum::Spectrum;
-use penumbra::spectrum::NO_WAVELENGTHS;
 use penumbra::study::chi2::{chi2_test, Chi2Config};
 use penumbra::study::stats::{normal_critical_z, sidak};
 use std::f64::consts::PI;
@@ -57,7 +56,12 @@ fn pdf_and_radiance(scene: &Job, p: Vec3, d: Vec3) -> (f64, Spectrum) {
         Some(hit) => {
             let le = match scene.scene.shapes[hit.shape as usize].emitter {
                 Some(e) => match &scene.scene.emitters[e as usize] {
-                    Emitter::Area(a) => a.eval(&hit, -d, &scene.scene.shapes, NO_WAVELENGTHS),
+                    Emitter::Area(a) => a.eval(
+                        &hit,
+                        -d,
+                        &scene.scene.shapes,
+                        penumbra::spectrum::NO_WAVELENGTHS,
+                    ),
                     _ => Spectrum::ZERO,
                 },
                 None => Spectrum::ZERO,
@@ -66,7 +70,9 @@ fn pdf_and_radiance(scene: &Job, p: Vec3, d: Vec3) -> (f64, Spectrum) {
         }
         None => (
             scene.scene.pdf_environment(d) as f64,
-            scene.scene.eval_environment(d, NO_WAVELENGTHS),
+            scene
+                .scene
+                .eval_environment(d, penumbra::spectrum::NO_WAVELENGTHS),
         ),
     }
 }
@@ -90,9 +96,10 @@ fn check_sampling(name: &str, scene: &Job, p: Vec3, seed: u64) {
         n,
         |i| {
             let u = SampleStream::new(seed, i as u64, 0).next_2d();
-            let ds = scene
-                .scene
-                .sample_emitter_direction(&si, u, NO_WAVELENGTHS)?;
+            let ds =
+                scene
+                    .scene
+                    .sample_emitter_direction(&si, u, penumbra::spectrum::NO_WAVELENGTHS)?;
             // Delta samples have no density; occluded samples (behind another emitter)
             // contribute nothing, and the density of the rest at d is that of the emitter
             // a ray along d finds first.
@@ -486,13 +493,17 @@ fn nee_irradiance(scene: &Job, si: &SurfaceInteraction, n: usize, seed: u64) -> 
     let (mut s1, mut s2) = (0.0, 0.0);
     for i in 0..n {
         let u = SampleStream::new(seed, i as u64, 0).next_2d();
-        let v = match scene.scene.sample_emitter_direction(si, u, NO_WAVELENGTHS) {
-            Some(ds) => {
-                let cos = ds.d.dot(si.frame.n).max(0.0) as f64;
-                ds.radiance.x as f64 * cos / ds.pdf as f64
-            }
-            None => 0.0,
-        };
+        let v =
+            match scene
+                .scene
+                .sample_emitter_direction(si, u, penumbra::spectrum::NO_WAVELENGTHS)
+            {
+                Some(ds) => {
+                    let cos = ds.d.dot(si.frame.n).max(0.0) as f64;
+                    ds.radiance.x as f64 * cos / ds.pdf as f64
+                }
+                None => 0.0,
+            };
         s1 += v;
         s2 += v * v;
     }
@@ -554,7 +565,11 @@ fn analytic_irradiance_from_disk_sphere_and_constant_environment() {
         for j in 0..np {
             let phi = 2.0 * PI * (j as f64 + 0.5) / np as f64;
             let d = Vec3::new((st * phi.cos()) as f32, ct as f32, (st * phi.sin()) as f32);
-            exact += s.scene.eval_environment(d, NO_WAVELENGTHS).x as f64 * ct;
+            exact += s
+                .scene
+                .eval_environment(d, penumbra::spectrum::NO_WAVELENGTHS)
+                .x as f64
+                * ct;
         }
     }
     exact *= 2.0 * PI / (nt * np) as f64;
@@ -570,7 +585,7 @@ fn delta_lights_give_mitsubas_values() {
     );
     let ds = s
         .scene
-        .sample_emitter_direction(&si, Vec2::splat(0.5), NO_WAVELENGTHS)
+        .sample_emitter_direction(&si, Vec2::splat(0.5), penumbra::spectrum::NO_WAVELENGTHS)
         .unwrap();
     assert!(ds.delta && ds.pdf == 1.0 && (ds.dist - 2.0).abs() < 1e-6);
     assert!((ds.radiance - Spectrum::splat(0.75)).abs().max_element() < 1e-6);
@@ -598,7 +613,7 @@ fn delta_lights_give_mitsubas_values() {
         let si = reference_point(p, -Vec3::Z);
         let got = s
             .scene
-            .sample_emitter_direction(&si, Vec2::splat(0.5), NO_WAVELENGTHS)
+            .sample_emitter_direction(&si, Vec2::splat(0.5), penumbra::spectrum::NO_WAVELENGTHS)
             .map_or(0.0, |ds| ds.radiance.x * 4.0);
         assert!(
             (got - expected).abs() < 2e-4,
@@ -611,7 +626,7 @@ fn delta_lights_give_mitsubas_values() {
     );
     let ds = s
         .scene
-        .sample_emitter_direction(&si, Vec2::splat(0.3), NO_WAVELENGTHS)
+        .sample_emitter_direction(&si, Vec2::splat(0.3), penumbra::spectrum::NO_WAVELENGTHS)
         .unwrap();
     assert!(ds.delta && ds.is_infinite() && (ds.d - Vec3::Z).length() < 1e-6);
     assert_eq!(ds.radiance, Spectrum::splat(2.0));
@@ -749,7 +764,7 @@ fn emitter_rays_carry_the_emitted_power() {
                 rng.next_2d(),
                 &s.scene.shapes,
                 s.scene.bounding_sphere,
-                NO_WAVELENGTHS,
+                penumbra::spectrum::NO_WAVELENGTHS,
             ) else {
                 continue;
             };

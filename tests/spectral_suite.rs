@@ -9,9 +9,8 @@
 //! its power to see 1% is at least 95% (as tests/mitsuba_suite.rs), and each judged scene
 //! rendered in RGB mode against the same spectral reference must fail the checks wherever the
 //! RGB render's mean lies more than 8 standard errors from the spectral render's (the
-//! difference the issue describes; none of the scenes judged so far resolves it: their
-//! colours are greys, which both modes render alike. validation/scenes.toml's
-//! spectral-mitsuba-cbox is the scene that does).
+//! difference the issue describes; validation/scenes.toml's spectral-mitsuba-cbox resolves it
+//! too).
 //!
 //! Full tier (`cargo test --release -- --ignored`): the suite's sample budget takes seconds
 //! per scene.
@@ -23,67 +22,32 @@ use std::path::Path;
 
 /// Scenes spectral mode refuses today, with (part of) the one-line reason it gives.
 const REFUSED: &[(&str, &str)] = &[
-    ("bsdf_spheres/test_arealight_path", "bitmap"),
-    ("bsdf_spheres/test_bumpmap_path", "bitmap"),
-    ("bsdf_spheres/test_constant_path", "bitmap"),
-    ("bsdf_spheres/test_envmap_path", "bitmap"),
-    (
-        "bsdf_spheres/test_normalmap_identity_roughconductor_path",
-        "envmap",
-    ),
-    ("bsdf_spheres/test_normalmap_path", "bitmap"),
-    ("bsdf_spheres/test_normalmap_roughconductor_path", "bitmap"),
-    ("bsdf_spheres/test_pointlight_path", "bitmap"),
-    ("bsdf_spheres/test_roughdielectric_path", "envmap"),
-    ("bsdf_spheres/test_roughplastic_linear_path", "envmap"),
-    ("bsdf_spheres/test_roughplastic_nonlinear_path", "envmap"),
-    ("bsdf_spheres/test_textured_diffuse_path", "bitmap"),
-    ("bsdf_spheres/test_textured_roughconductor_path", "envmap"),
-    ("bsdf_spheres/test_texturedprincipled1_path", "envmap"),
-    ("bsdf_spheres/test_texturedprincipled2_path", "envmap"),
-    ("bsdf_spheres/test_texturedprincipledthin_path", "envmap"),
-    ("infinite_mirrors/scene_path", "envmap"),
-    (
-        "mesh_attributes/test_mesh_attributes_1_face_direct",
-        "mesh_attribute",
-    ),
-    (
-        "mesh_attributes/test_mesh_attributes_3_face_direct",
-        "mesh_attribute",
-    ),
-    (
-        "mesh_attributes/test_mesh_attributes_3_vertex_direct",
-        "mesh_attribute",
-    ),
     (
         "participating_media/test_hetero_sigmat_albedo_volpath",
-        "envmap",
+        "media",
     ),
-    ("participating_media/test_hetero_sigmat_volpath", "envmap"),
+    ("participating_media/test_hetero_sigmat_volpath", "media"),
     (
         "participating_media/test_hetero_spectral_sigmat_no_scattering_volpath",
-        "envmap",
+        "media",
     ),
     (
         "participating_media/test_hetero_spectral_sigmat_volpathmis",
-        "envmap",
+        "media",
     ),
     ("participating_media/test_homo_area_light_volpath", "media"),
     (
         "participating_media/test_homo_dielectric_envmap_volpath",
-        "envmap",
+        "media",
     ),
     (
         "participating_media/test_homo_emitter_inside_medium_volpath",
-        "envmap",
+        "media",
     ),
-    (
-        "participating_media/test_homo_null_envmap_volpath",
-        "envmap",
-    ),
+    ("participating_media/test_homo_null_envmap_volpath", "media"),
     (
         "participating_media/test_homo_obj_inside_medium_volpath",
-        "envmap",
+        "media",
     ),
     (
         "participating_media/test_homo_roughdielectric_spot_volpath",
@@ -91,13 +55,16 @@ const REFUSED: &[(&str, &str)] = &[
     ),
     (
         "participating_media/test_homo_spectral_sigmat_volpathmis",
-        "envmap",
+        "media",
     ),
-    ("participating_media/test_surf_area_light_volpath", "envmap"),
-    ("projector/test_projector_textured_direct", "bitmap"),
-    ("spot_light/test_spot_direct", "bitmap"),
-    ("texture_interp/test_texture_interp_direct", "bitmap"),
-    ("various_emitters/test_various_emitters_ptracer", "bitmap"),
+    (
+        "participating_media/test_surf_area_light_volpath",
+        "volpath renders in RGB mode only",
+    ),
+    (
+        "various_emitters/test_various_emitters_ptracer",
+        "ptracer renders in RGB mode only",
+    ),
 ];
 
 #[test]

@@ -42,7 +42,7 @@ pub(crate) struct RenderArgs {
     /// `rgb` (default) renders linear sRGB as Mitsuba's `*_rgb` variants; `spectral` carries
     /// four wavelengths per path and converts them to linear sRGB as Mitsuba's `*_spectral`
     /// variants (`<spectrum>` values kept as spectra, RGB reflectances upsampled; path and
-    /// direct integrators, no bitmaps, environment maps or media yet).
+    /// direct integrators; no media or volume textures yet).
     #[arg(long, value_enum, default_value_t = ModeArg::Rgb)]
     mode: ModeArg,
     /// Render the scene's sensor number N (from 0, in file order) instead of the first, which

@@ -12,11 +12,19 @@
 //! (the mean of its four corners) times its solid angle 2π/W · (cos θ_j − cos θ_{j+1}),
 //! sampled with a marginal/conditional 2D distribution (pbrt-v4 §A.5.6). The density w.r.t.
 //! solid angle is p(u, v) / (2π² sin θ).
+//!
+//! Spectral mode (Mitsuba's spectral variants, [`EnvMapEmitter::new_spectral`]): each texel
+//! is stored as the coefficients of the spectrum of its colour over s = 2 max(R, G, B)
+//! (a reflectance whose largest channel is ½) and s; the radiance is the four corner
+//! texels' spectra interpolated bilinearly, times the interpolated s, times `scale`, times
+//! the normalised D65 illuminant. The sampling density weighs each texel by the mean of its
+//! spectrum times s instead of the luminance.
 
 use super::DirectionSample;
 use crate::sampling::Distribution2D;
+use crate::spectral::{self, D65Emission};
 use crate::spectrum::{from_rgb, Spectrum};
-use glam::{Mat3, Vec2, Vec3};
+use glam::{Mat3, Vec2, Vec3, Vec4};
 use std::f32::consts::PI;
 
 pub use crate::spectrum::luminance;
@@ -25,12 +33,24 @@ pub use crate::spectrum::luminance;
 pub struct EnvMapEmitter {
     width: usize,
     height: usize,
-    /// Row-major texels (row 0 = up), already multiplied by `scale`.
+    /// Row-major texels (row 0 = up), already multiplied by `scale` (RGB mode; empty in
+    /// spectral mode).
     texels: Vec<Spectrum>,
+    /// Spectral mode's texels.
+    spectral: Option<Box<SpectralTexels>>,
     to_world: Mat3,
     to_local: Mat3,
     distribution: Option<Distribution2D>,
     mean_radiance: f64,
+}
+
+/// Spectral mode's texels: per texel the coefficients of the spectrum of rgb / s and s =
+/// 2 max(rgb) (Mitsuba's four-channel texture), the `scale` and the D65 illuminant.
+#[derive(Clone, Debug)]
+struct SpectralTexels {
+    texels: Vec<[f32; 4]>,
+    scale: f32,
+    d65: D65Emission,
 }
 
 impl EnvMapEmitter {
@@ -53,34 +73,113 @@ impl EnvMapEmitter {
             .iter()
             .map(|t| luminance(*t).max(0.0) as f64)
             .collect();
+        let mean_rgb: Vec<f64> = texels
+            .iter()
+            .map(|t| (t.x as f64 + t.y as f64 + t.z as f64) / 3.0)
+            .collect();
+        Some(Self::with_weights(
+            width, height, texels, None, &lum, &mean_rgb, to_world,
+        ))
+    }
+
+    /// Spectral mode's envmap, as Mitsuba's spectral variants build it: each texel's colour
+    /// `rgb` becomes the coefficients of rgb / max(10⁻⁸, s) ([`spectral::srgb_model_fetch`])
+    /// and s = 2 max(rgb); see the top. Same arguments as [`EnvMapEmitter::new`].
+    pub fn new_spectral(
+        width: usize,
+        height: usize,
+        texels: &[[f32; 3]],
+        scale: f32,
+        to_world: Mat3,
+    ) -> Option<Self> {
+        use rayon::prelude::*;
+        let coeffs: Vec<[f32; 4]> = texels
+            .par_iter()
+            .map(|t| Self::spectral_texel(*t))
+            .collect();
+        Self::from_spectral_texels(width, height, coeffs, scale, to_world)
+    }
+
+    /// A texel as spectral mode stores it: the coefficients of `rgb` / max(10⁻⁸, s)
+    /// ([`spectral::srgb_model_fetch`]) and s = 2 max(rgb), Mitsuba's four channels.
+    pub fn spectral_texel(rgb: [f32; 3]) -> [f32; 4] {
+        let s = rgb[0].max(rgb[1]).max(rgb[2]) * 2.0;
+        let d = s.max(1e-8);
+        let c = spectral::srgb_model_fetch([rgb[0] / d, rgb[1] / d, rgb[2] / d]);
+        [c[0], c[1], c[2], s]
+    }
+
+    /// Spectral mode's envmap from texels already in the form of
+    /// [`EnvMapEmitter::spectral_texel`] (e.g. Mitsuba's own coefficients, for comparisons).
+    pub fn from_spectral_texels(
+        width: usize,
+        height: usize,
+        coeffs: Vec<[f32; 4]>,
+        scale: f32,
+        to_world: Mat3,
+    ) -> Option<Self> {
+        if width == 0 || height < 2 || coeffs.len() != width * height {
+            return None;
+        }
+        // Mitsuba's sampling weight: the spectrum's mean times s (times the scale here).
+        let lum: Vec<f64> = coeffs
+            .iter()
+            .map(|c| {
+                let m = spectral::srgb_model_mean([c[0], c[1], c[2]]) as f64 * c[3] as f64;
+                (m * scale as f64).max(0.0)
+            })
+            .collect();
+        Some(Self::with_weights(
+            width,
+            height,
+            Vec::new(),
+            Some(Box::new(SpectralTexels {
+                texels: coeffs,
+                scale,
+                d65: D65Emission::new(1.0),
+            })),
+            &lum,
+            &lum,
+            to_world,
+        ))
+    }
+
+    /// The emitter with its sampling distribution: `lum` the texels' sampling weights,
+    /// `mean_vals` their mean values (for the mean radiance).
+    fn with_weights(
+        width: usize,
+        height: usize,
+        texels: Vec<Spectrum>,
+        spectral: Option<Box<SpectralTexels>>,
+        lum: &[f64],
+        mean_rgb: &[f64],
+        to_world: Mat3,
+    ) -> Self {
         let at = |v: &[f64], i: usize, j: usize| v[j * width + (i % width)];
         let (nu, nv) = (width, height - 1);
         let mut weights = Vec::with_capacity(nu * nv);
         let mut mean = 0.0;
         let cos_row = |j: usize| (std::f64::consts::PI * j as f64 / nv as f64).cos();
-        let mean_rgb: Vec<f64> = texels
-            .iter()
-            .map(|t| (t.x as f64 + t.y as f64 + t.z as f64) / 3.0)
-            .collect();
         for j in 0..nv {
             let band = cos_row(j) - cos_row(j + 1);
             for i in 0..nu {
                 let corners = |v: &[f64]| {
                     (at(v, i, j) + at(v, i + 1, j) + at(v, i, j + 1) + at(v, i + 1, j + 1)) / 4.0
                 };
-                weights.push(corners(&lum) * band);
-                mean += corners(&mean_rgb) * band * 2.0 * std::f64::consts::PI / nu as f64;
+                weights.push(corners(lum) * band);
+                mean += corners(mean_rgb) * band * 2.0 * std::f64::consts::PI / nu as f64;
             }
         }
-        Some(EnvMapEmitter {
+        EnvMapEmitter {
             width,
             height,
             texels,
+            spectral,
             to_world,
             to_local: to_world.inverse(),
             distribution: Distribution2D::new(&weights, nu, nv),
             mean_radiance: mean / (4.0 * std::f64::consts::PI),
-        })
+        }
     }
 
     /// Mean radiance over the sphere of directions (mean over RGB).
@@ -107,9 +206,13 @@ impl EnvMapEmitter {
         (Vec2::new(u, v), sin_t)
     }
 
-    /// Radiance arriving from direction −`d` (`d` the escaping ray's direction).
-    pub fn eval(&self, d: Vec3) -> Spectrum {
+    /// Radiance arriving from direction −`d` (`d` the escaping ray's direction), at the
+    /// wavelengths `wl` in spectral mode (ignored in RGB mode).
+    pub fn eval(&self, d: Vec3, wl: Vec4) -> Spectrum {
         let (uv, _) = self.uv(d);
+        if let Some(sp) = &self.spectral {
+            return self.eval_spectral(sp, uv, wl);
+        }
         let x = uv.x * self.width as f32 - 0.5;
         let y = (uv.y * (self.height - 1) as f32).clamp(0.0, (self.height - 1) as f32);
         let (x0, y0) = (x.floor(), (y.floor() as usize).min(self.height - 2));
@@ -120,7 +223,44 @@ impl EnvMapEmitter {
         top * (1.0 - fy) + bottom * fy
     }
 
-    pub fn sample_direction(&self, u: Vec2) -> Option<DirectionSample> {
+    /// Spectral mode's radiance at (u, v), in Mitsuba's arithmetic (`eval_spectrum`): the
+    /// lookup position goes through the coordinates of its texture, which has one halo
+    /// column on each side (a copy of the opposite edge) and clamps: pos = ((u W + 1) / (W
+    /// + 2), (v (H − 1) + ½) / H), texel coordinates pos · (W + 2, H) − ½.
+    fn eval_spectral(&self, sp: &SpectralTexels, uv: Vec2, wl: Vec4) -> Spectrum {
+        let fma = |a: f32, b: f32, c: f32| (a as f64 * b as f64 + c as f64) as f32;
+        let (w, h) = (self.width as f32, self.height as f32);
+        let u = uv.x - uv.x.floor();
+        let v = uv.y.clamp(0.0, 1.0);
+        let pos = Vec2::new(fma(u, w, 1.0) / (w + 2.0), fma(v, h - 1.0, 0.5) / h);
+        let pf = Vec2::new(fma(pos.x, w + 2.0, -0.5), fma(pos.y, h, -0.5));
+        let fl = pf.floor();
+        let (w1, w0) = (pf - fl, Vec2::ONE - (pf - fl));
+        let (sx, sy) = (fl.x as i64, fl.y as i64);
+        // storage column c (0..=W+1) holds real column c − 1, the halo the opposite edge
+        let col = |c: i64| -> usize {
+            let c = c.clamp(0, self.width as i64 + 1);
+            (c - 1).rem_euclid(self.width as i64) as usize
+        };
+        let row = |r: i64| r.clamp(0, self.height as i64 - 1) as usize;
+        let (x0, x1, y0, y1) = (col(sx), col(sx + 1), row(sy), row(sy + 1));
+        let t = |x: usize, y: usize| sp.texels[y * self.width + x];
+        let (c00, c10, c01, c11) = (t(x0, y0), t(x1, y0), t(x0, y1), t(x1, y1));
+        let spec = |c: [f32; 4]| spectral::srgb_model_eval([c[0], c[1], c[2]], wl);
+        let lerp4 = |w0: f32, a: Vec4, w1: f32, b: Vec4| {
+            let p = b * w1;
+            Vec4::from_array(std::array::from_fn(|k| fma(w0, a[k], p[k])))
+        };
+        let s0 = lerp4(w0.x, spec(c00), w1.x, spec(c10));
+        let s1 = lerp4(w0.x, spec(c01), w1.x, spec(c11));
+        let f0 = fma(w0.x, c00[3], w1.x * c10[3]);
+        let f1 = fma(w0.x, c01[3], w1.x * c11[3]);
+        let s = lerp4(w0.y, s0, w1.y, s1);
+        let f = fma(w0.y, f0, w1.y * f1);
+        s * f * sp.scale * sp.d65.eval(wl)
+    }
+
+    pub fn sample_direction(&self, u: Vec2, wl: Vec4) -> Option<DirectionSample> {
         let dist = self.distribution.as_ref()?;
         let (cell_uv, pdf_uv) = dist.sample(u);
         if pdf_uv <= 0.0 {
@@ -145,7 +285,7 @@ impl EnvMapEmitter {
             d,
             dist: f32::INFINITY,
             pdf,
-            radiance: self.eval(d),
+            radiance: self.eval(d, wl),
             delta: false,
         })
     }
@@ -195,7 +335,7 @@ mod tests {
         for j in 1..h - 1 {
             for i in 0..w {
                 let d = direction((i as f32 + 0.5) / w as f32, j as f32 / (h - 1) as f32);
-                let got = e.eval(d);
+                let got = e.eval(d, Vec4::ZERO);
                 assert!(
                     (got - t(i, j)).abs().max_element() < 1e-3,
                     "texel ({i}, {j}): {got}"
@@ -209,7 +349,7 @@ mod tests {
                     (j as f32 + 0.5) / (h - 1) as f32,
                 );
                 let want = (t(i, j) + t(i + 1, j) + t(i, j + 1) + t(i + 1, j + 1)) / 4.0;
-                let got = e.eval(d);
+                let got = e.eval(d, Vec4::ZERO);
                 assert!(
                     (got - want).abs().max_element() < 1e-3,
                     "cell ({i}, {j}): {got} vs {want}"

@@ -283,7 +283,7 @@ impl Emitter {
             Emitter::Projector(e) => e.sample_direction(p_ref, wl),
             Emitter::Directional(e) => Some(e.sample_direction(wl)),
             Emitter::Constant(e) => e.sample_direction(u, wl),
-            Emitter::EnvMap(e) => e.sample_direction(u),
+            Emitter::EnvMap(e) => e.sample_direction(u, wl),
         }
     }
 
@@ -353,7 +353,7 @@ impl Emitter {
                 )
             }
             Emitter::EnvMap(e) => {
-                let ds = e.sample_direction(u_dir)?;
+                let ds = e.sample_direction(u_dir, wl)?;
                 EmitterRay::from_infinity(
                     ray_from_infinity(-ds.d, u_pos, bounds),
                     ds.radiance * (disk / ds.pdf),
@@ -413,7 +413,7 @@ impl Emitter {
     pub fn eval_environment(&self, d: Vec3, wl: Vec4) -> Spectrum {
         match self {
             Emitter::Constant(e) => e.radiance.eval(wl),
-            Emitter::EnvMap(e) => e.eval(d),
+            Emitter::EnvMap(e) => e.eval(d, wl),
             _ => Spectrum::ZERO,
         }
     }

@@ -539,6 +539,7 @@ mod tests {
 
     use super::*;
     use crate::simd::{dispatch, Backend, LaneProgram};
+    use crate::spectrum::NO_WAVELENGTHS as NO_WL;
     use rand::{RngExt, SeedableRng};
 
     fn scene(weight: &str) -> Scene {
@@ -605,14 +606,9 @@ mod tests {
                         delta: false,
                     }
                 }
-                _ => scene.emitters[i].sample_direction(
-                    p_ref,
-                    u,
-                    &scene.shapes,
-                    crate::spectrum::NO_WAVELENGTHS,
-                )?,
+                _ => scene.emitters[i].sample_direction(p_ref, u, &scene.shapes, NO_WL)?,
             },
-            e => e.sample_direction(p_ref, u, &scene.shapes, crate::spectrum::NO_WAVELENGTHS)?,
+            e => e.sample_direction(p_ref, u, &scene.shapes, NO_WL)?,
         };
         ds.pdf *= pmf;
         Some(ds)
@@ -701,7 +697,7 @@ mod tests {
                     l.mask(bits),
                     geo.p,
                     (u0, u1),
-                    &[crate::spectrum::NO_WAVELENGTHS; 16],
+                    &[NO_WL; 16],
                 );
                 let ray = Scene::shadow_ray_lanes(l, geo.p, geo.p_error, geo.ng, &ds);
                 out.extend(
@@ -781,7 +777,7 @@ mod tests {
             // the scalar functions are the width-1 instances
             for (c, w) in cases.iter().zip(&want).filter(|(c, _)| c.active) {
                 let g = scene
-                    .sample_emitter_direction_at(c.si.p, c.u, crate::spectrum::NO_WAVELENGTHS)
+                    .sample_emitter_direction_at(c.si.p, c.u, NO_WL)
                     .map(|ds| (ds, Scene::shadow_ray(&c.si, &ds)));
                 assert_eq!(format!("{g:?}"), format!("{w:?}"));
                 assert_eq!(

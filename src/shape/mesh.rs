@@ -37,6 +37,20 @@ pub struct MeshAttribute {
     pub values: Vec<f32>,
 }
 
+impl MeshAttribute {
+    /// Row `i` (a vertex or a face) as three values (a single channel in `x`; 0 past the
+    /// end).
+    pub fn row(&self, i: usize) -> Vec3 {
+        let c = self.channels;
+        let v = self.values.get(i * c..i * c + c).unwrap_or(&[]);
+        Vec3::new(
+            v.first().copied().unwrap_or(0.0),
+            v.get(1).copied().unwrap_or(0.0),
+            v.get(2).copied().unwrap_or(0.0),
+        )
+    }
+}
+
 impl Mesh {
     /// Builds a mesh. Indices must be in range (the caller validates input meshes).
     pub fn new(
@@ -68,25 +82,35 @@ impl Mesh {
     /// channel count (1 or 3; a single channel is in `x`). `None` if the mesh has no such
     /// attribute.
     pub fn eval_attribute(&self, name: &str, tri: usize, bary: Vec2) -> Option<(Vec3, usize)> {
-        let a = self.attributes.iter().find(|a| a.name == name)?;
-        let c = a.channels;
-        let row = |i: usize| -> Vec3 {
-            let v = a.values.get(i * c..i * c + c).unwrap_or(&[]);
-            Vec3::new(
-                v.first().copied().unwrap_or(0.0),
-                v.get(1).copied().unwrap_or(0.0),
-                v.get(2).copied().unwrap_or(0.0),
-            )
-        };
+        let a = self.attribute(name)?;
         let value = if a.per_face {
-            row(tri)
+            a.row(tri)
         } else {
             let [i0, i1, i2] = *self.triangles.get(tri)?;
-            row(i0 as usize) * (1.0 - bary.x - bary.y)
-                + row(i1 as usize) * bary.x
-                + row(i2 as usize) * bary.y
+            a.row(i0 as usize) * (1.0 - bary.x - bary.y)
+                + a.row(i1 as usize) * bary.x
+                + a.row(i2 as usize) * bary.y
         };
-        Some((value, c))
+        Some((value, a.channels))
+    }
+
+    /// The attribute called `name`, if the mesh has it.
+    pub fn attribute(&self, name: &str) -> Option<&MeshAttribute> {
+        self.attributes.iter().find(|a| a.name == name)
+    }
+
+    /// Spectral mode: every three-channel attribute whose name contains `color` becomes
+    /// the sigmoid-polynomial coefficients of its colours, row by row, as Mitsuba's spectral
+    /// variants convert such attributes when a mesh is loaded (`Mesh::add_attribute`).
+    pub fn upsample_color_attributes(&mut self) {
+        for a in &mut self.attributes {
+            if a.channels == 3 && a.name.contains("color") {
+                for row in a.values.chunks_exact_mut(3) {
+                    let c = crate::spectral::srgb_model_fetch([row[0], row[1], row[2]]);
+                    row.copy_from_slice(&c);
+                }
+            }
+        }
     }
 
     pub fn vertices(&self, tri: usize) -> [Vec3; 3] {

@@ -157,6 +157,7 @@ impl Format {
     }
 }
 
+use crate::spectral;
 use crate::spectrum::srgb_to_linear;
 
 #[derive(Clone, Debug)]
@@ -179,9 +180,13 @@ pub struct TexImage {
     height: usize,
     channels: usize,
     texels: Texels,
-    /// Mean luminance (or grey value) over the texels.
+    /// Mean luminance (or grey value) over the texels; with `coefficients`, the mean of
+    /// their spectra (`srgb_model_mean`).
     mean: f32,
     mean_rgb: Vec3,
+    /// Spectral mode: the three channels of each texel hold the sigmoid-polynomial
+    /// coefficients of its colour (`srgb_model_fetch`), not the colour.
+    coefficients: bool,
 }
 
 impl TexImage {
@@ -283,9 +288,74 @@ impl TexImage {
             texels,
             mean: 0.0,
             mean_rgb: Vec3::ZERO,
+            coefficients: false,
         };
         tex.compute_means();
         tex
+    }
+
+    /// A three-channel texture of spectral coefficients given as they are (`width` ×
+    /// `height` texels, row-major, three values each; e.g. Mitsuba's own `srgb_model_fetch`
+    /// results, for comparisons), stored in f32 like [`TexImage::from_image_spectral`]'s.
+    /// `None` unless there are `3 · width · height` values and at least one texel.
+    pub fn from_coefficients(width: usize, height: usize, coefficients: Vec<f32>) -> Option<Self> {
+        if width == 0 || height == 0 || coefficients.len() != 3 * width * height {
+            return None;
+        }
+        let mut tex = TexImage {
+            width,
+            height,
+            channels: 3,
+            texels: Texels::F32(coefficients),
+            mean: 0.0,
+            mean_rgb: Vec3::ZERO,
+            coefficients: true,
+        };
+        tex.compute_means();
+        Some(tex)
+    }
+
+    /// Loads an image file as spectral mode stores it: see [`TexImage::from_image_spectral`].
+    pub fn load_spectral(path: &Path, raw: bool, format: Format) -> Result<Self, String> {
+        Self::from_image_spectral(image::read(path)?, raw, format)
+    }
+
+    /// The texture data as Mitsuba's spectral variants store it (`upsample_spectral`): the
+    /// default storage is f32 whatever the file's depth (`format` = `auto` resolves to
+    /// `variant`), 8-bit storage is refused, and unless `raw` each texel of a three-channel
+    /// image becomes the coefficients of its spectrum ([`spectral::srgb_model_fetch`],
+    /// which clamps the colour to [0, 1] first; rounded to half with `float16` storage, as
+    /// Mitsuba stores them). One-channel images are kept as they are.
+    pub fn from_image_spectral(image: Image, raw: bool, format: Format) -> Result<Self, String> {
+        let storage = match format {
+            Format::UInt8 => {
+                return Err("format=\"uint8\" is not supported in spectral mode (8-bit storage cannot hold spectral upsampling coefficients; Mitsuba refuses it too)".into())
+            }
+            Format::Auto => Format::Variant,
+            f => f,
+        };
+        let mut tex = Self::from_image(image, raw, storage);
+        if tex.channels == 3 && !raw {
+            use rayon::prelude::*;
+            let fetch = |c: &mut [f32]| {
+                let k = spectral::srgb_model_fetch([c[0], c[1], c[2]]);
+                c.copy_from_slice(&k);
+            };
+            match &mut tex.texels {
+                Texels::F32(d) => d.par_chunks_mut(3).for_each(fetch),
+                Texels::F16(d) => d.par_chunks_mut(3).for_each(|c| {
+                    let mut v = [c[0].to_f32(), c[1].to_f32(), c[2].to_f32()];
+                    fetch(&mut v);
+                    for (h, x) in c.iter_mut().zip(v) {
+                        *h = f16::from_f32(x);
+                    }
+                }),
+                Texels::U8 { .. } => unreachable!("8-bit storage is refused above"),
+            }
+            tex.coefficients = true;
+            tex.compute_means();
+        }
+        Ok(tex)
     }
 
     fn compute_means(&mut self) {
@@ -296,6 +366,11 @@ impl TexImage {
                 let y = self.fetch::<1>(i)[0];
                 lum += y as f64;
                 rgb = rgb.map(|s| s + y as f64);
+            } else if self.coefficients {
+                // (the spectrum's mean stands for every channel)
+                let m = spectral::srgb_model_mean(self.fetch::<3>(i)) as f64;
+                lum += m;
+                rgb = rgb.map(|s| s + m);
             } else {
                 let c = self.fetch::<3>(i);
                 lum += luminance(c) as f64;
@@ -341,6 +416,10 @@ impl TexImage {
     /// The mean of each channel (a grey value replicated).
     pub fn mean_rgb(&self) -> Vec3 {
         self.mean_rgb
+    }
+    /// Whether the texels hold spectral coefficients ([`TexImage::from_image_spectral`]).
+    pub fn holds_coefficients(&self) -> bool {
+        self.coefficients
     }
     /// The storage chosen ([`Format::Auto`] resolved).
     pub fn storage(&self) -> Format {
@@ -476,6 +555,8 @@ impl BitmapTexture {
                 let t = img.texel(x, y);
                 let v = if img.channels == 1 {
                     t.x
+                } else if img.coefficients {
+                    spectral::srgb_model_mean(t.to_array())
                 } else {
                     luminance(t.to_array())
                 };
@@ -574,6 +655,64 @@ impl BitmapTexture {
         } else {
             Vec3::from(self.lookup::<3>(uv))
         }
+    }
+
+    /// The value at `uv` and `wavelengths` (nm), as Mitsuba's `eval` in its spectral variants:
+    /// a grey image's value at every wavelength; for coefficient texels
+    /// ([`TexImage::from_image_spectral`]) the spectra of the texels evaluated at the
+    /// wavelengths and then interpolated (the upsampling is not linear: interpolating the
+    /// colours or the coefficients first would give another spectrum), in Mitsuba's order of
+    /// fused multiply-adds; nearest: the one texel's spectrum. Any other image (RGB mode, or a
+    /// `raw` three-channel image, which the scene builder refuses in spectral mode) gives
+    /// its RGB lanes.
+    #[inline]
+    pub fn eval_spectrum(&self, uv: Vec2, wavelengths: glam::Vec4) -> glam::Vec4 {
+        if !self.image.coefficients {
+            return crate::spectrum::from_rgb(self.eval(uv));
+        }
+        let spectrum = |c: [f32; 3]| spectral::srgb_model_eval(c, wavelengths);
+        let (u, v) = self.transform(uv);
+        let img = &*self.image;
+        let (w, h) = (img.width, img.height);
+        match self.filter {
+            Filter::Nearest => {
+                let x = self.wrap.apply(floor_i64(u * w as f32), w);
+                let y = self.wrap.apply(floor_i64(v * h as f32), h);
+                spectrum(img.fetch::<3>(y * w + x))
+            }
+            Filter::Bilinear => {
+                let px = fma(u, w as f32, -0.5);
+                let py = fma(v, h as f32, -0.5);
+                let (fx, fy) = (px.floor(), py.floor());
+                let (wx1, wy1) = (px - fx, py - fy);
+                let (wx0, wy0) = (1.0 - wx1, 1.0 - wy1);
+                let (ix, iy) = (floor_i64(fx), floor_i64(fy));
+                let (x0, x1) = (
+                    self.wrap.apply(ix, w),
+                    self.wrap.apply(ix.saturating_add(1), w),
+                );
+                let (y0, y1) = (
+                    self.wrap.apply(iy, h),
+                    self.wrap.apply(iy.saturating_add(1), h),
+                );
+                let s = |x: usize, y: usize| spectrum(img.fetch::<3>(y * w + x));
+                // c0 = fma(w0x, c00, w1x c10), c1 likewise, fma(w0y, c0, w1y c1)
+                let lerp = |w0: f32, a: glam::Vec4, w1: f32, b: glam::Vec4| {
+                    let p = b * w1;
+                    glam::Vec4::from_array(std::array::from_fn(|k| fma(w0, a[k], p[k])))
+                };
+                let c0 = lerp(wx0, s(x0, y0), wx1, s(x1, y0));
+                let c1 = lerp(wx0, s(x0, y1), wx1, s(x1, y1));
+                lerp(wy0, c0, wy1, c1)
+            }
+        }
+    }
+
+    /// Whether the texels hold spectral coefficients (spectral mode, three channels, not
+    /// `raw`): such a texture answers spectral lookups only; Mitsuba refuses `eval_1` and
+    /// `eval_3` of it.
+    pub fn holds_coefficients(&self) -> bool {
+        self.image.coefficients
     }
 
     /// One value at `uv`, as Mitsuba's `eval_1`: the grey value, or the luminance of the

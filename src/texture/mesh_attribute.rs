@@ -13,6 +13,13 @@
 //! not a mesh, gives 0 (Mitsuba throws on a mesh without it; the scene builder checks that
 //! every mesh using the texture has it).
 //!
+//! Spectral mode (Mitsuba's spectral variants): a three-channel attribute is looked up as the
+//! coefficients of spectra ([`crate::spectral::srgb_model_eval`]), the three vertices'
+//! spectra interpolated with the barycentrics (a face's own spectrum for a face attribute);
+//! the mesh converted the colours of attributes named `*color*` into coefficients when it
+//! was built ([`crate::shape::Mesh::upsample_color_attributes`]). Like Mitsuba, a
+//! three-channel attribute of another name is taken as coefficients as it is.
+//!
 //! ```xml
 //! <texture type="mesh_attribute" name="reflectance">
 //!     <string name="name" value="vertex_color"/>
@@ -20,13 +27,16 @@
 //! ```
 
 use super::TextureContext;
-use glam::Vec3;
+use crate::spectral::srgb_model_eval;
+use glam::{Vec3, Vec4};
 
 #[derive(Clone, Debug)]
 pub struct MeshAttributeTexture {
     /// The attribute's name, `vertex_*` or `face_*`.
     pub name: String,
     pub scale: f32,
+    /// Spectral mode: three-channel attributes hold spectral coefficients.
+    pub spectral: bool,
 }
 
 impl MeshAttributeTexture {
@@ -44,6 +54,40 @@ impl MeshAttributeTexture {
             Some((v, _)) => v * self.scale,
             None => Vec3::ZERO,
         }
+    }
+
+    /// The value at the shading point and its wavelengths: RGB mode's [`Self::eval`] as
+    /// lanes, or in spectral mode the spectrum of a three-channel attribute (see the top).
+    #[inline]
+    pub fn eval_spectrum(&self, ctx: &TextureContext) -> Vec4 {
+        if !self.spectral {
+            return crate::spectrum::from_rgb(self.eval(ctx));
+        }
+        let Some(a) = ctx.mesh.and_then(|m| m.attribute(&self.name)) else {
+            return Vec4::ZERO;
+        };
+        if a.channels != 3 {
+            return crate::spectrum::from_rgb(self.eval(ctx));
+        }
+        let spectrum = |i: usize| srgb_model_eval(a.row(i).to_array(), ctx.wavelengths);
+        let value = if a.per_face {
+            spectrum(ctx.prim as usize)
+        } else {
+            let Some(&[i0, i1, i2]) = ctx.mesh.and_then(|m| m.triangles.get(ctx.prim as usize))
+            else {
+                return Vec4::ZERO;
+            };
+            let b = [1.0 - ctx.bary.x - ctx.bary.y, ctx.bary.x, ctx.bary.y];
+            // fma(c0, b0, fma(c1, b1, c2 b2)), Mitsuba's order
+            let fma = |a: Vec4, w: f32, c: Vec4| {
+                Vec4::from_array(std::array::from_fn(|k| {
+                    (a[k] as f64 * w as f64 + c[k] as f64) as f32
+                }))
+            };
+            let inner = fma(spectrum(i1 as usize), b[1], spectrum(i2 as usize) * b[2]);
+            fma(spectrum(i0 as usize), b[0], inner)
+        };
+        value * self.scale
     }
 
     #[inline]

@@ -72,6 +72,18 @@ impl TextureContext<'_> {
     }
 }
 
+/// How a texture is looked up (Mitsuba's `eval`, `eval_1`, `eval_3`), for the checks of
+/// spectral mode ([`Texture::spectral_refusal`]).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Lookup {
+    /// `eval`: a colour, a spectrum in spectral mode.
+    Spectrum,
+    /// `eval_1` (and `eval_1_grad`): one value.
+    One,
+    /// `eval_3`: three raw values (normal maps).
+    Three,
+}
+
 /// A texture, ready to be looked up.
 #[derive(Clone, Debug)]
 pub enum Texture {
@@ -111,9 +123,9 @@ impl Texture {
         match self {
             Texture::Constant { rgb, .. } => from_rgb(*rgb),
             Texture::Spectral { value, .. } => value.eval(ctx.wavelengths),
-            Texture::Bitmap(b) => from_rgb(b.eval(ctx.uv)),
+            Texture::Bitmap(b) => b.eval_spectrum(ctx.uv, ctx.wavelengths),
             Texture::Checkerboard(c) => c.eval(ctx),
-            Texture::MeshAttribute(a) => from_rgb(a.eval(ctx)),
+            Texture::MeshAttribute(a) => a.eval_spectrum(ctx),
             Texture::Volume(v) => from_rgb(v.eval(ctx.p)),
         }
     }
@@ -167,6 +179,32 @@ impl Texture {
             // Mitsuba has no mean for an attribute; its constant scale is what is known.
             Texture::MeshAttribute(a) => a.scale,
             Texture::Volume(v) => v.mean(),
+        }
+    }
+
+    /// Spectral mode: why Mitsuba 3.9.1's spectral variants refuse to look this texture up as
+    /// `lookup` (they throw at the first lookup; penumbra says so when the scene is built),
+    /// or `None`. A three-channel bitmap converted into spectra (`raw` = false) answers
+    /// spectral lookups only; a `raw` three-channel bitmap cannot be a spectrum.
+    pub fn spectral_refusal(&self, lookup: Lookup) -> Option<String> {
+        match self {
+            Texture::Bitmap(b) if b.channels() == 3 => {
+                match (b.holds_coefficients(), lookup) {
+                    (true, Lookup::One | Lookup::Three) => Some(format!(
+                        "a bitmap texture is looked up as {} here, but spectral mode converts a three-channel bitmap into spectra (Mitsuba refuses this lookup too): use a one-channel image, or raw=\"true\"",
+                        if lookup == Lookup::One { "one value" } else { "raw RGB (a normal map)" }
+                    )),
+                    (false, Lookup::Spectrum) => Some(
+                        "a bitmap texture has raw=\"true\" and three channels: spectral mode cannot look it up as a spectrum (Mitsuba refuses it too); drop raw=\"true\"".into()
+                    ),
+                    _ => None,
+                }
+            }
+            Texture::Checkerboard(c) => c
+                .color0
+                .spectral_refusal(lookup)
+                .or_else(|| c.color1.spectral_refusal(lookup)),
+            _ => None,
         }
     }
 

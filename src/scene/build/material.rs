@@ -11,7 +11,7 @@ use crate::scene::description::{BsdfDesc, TextureDesc, VolumeDesc};
 use crate::spectrum::Mode;
 use crate::texture::bitmap::{BitmapTexture, Format, TexImage};
 use crate::texture::{
-    Checkerboard, ColorValue, MeshAttributeTexture, Texture, UvTransform, VolumeTexture,
+    Checkerboard, ColorValue, Lookup, MeshAttributeTexture, Texture, UvTransform, VolumeTexture,
 };
 use glam::{DMat4, DVec3, Vec3};
 use std::path::PathBuf;
@@ -60,11 +60,11 @@ impl MaterialBuilder {
                 back: self.material(back)?,
             },
             BsdfDesc::Mask { opacity, nested } => Material::Mask {
-                opacity: self.texture(opacity)?,
+                opacity: self.texture_for(opacity, Lookup::One)?,
                 nested: self.material(nested)?,
             },
             BsdfDesc::Blend { weight, nested } => Material::Blend {
-                weight: self.texture(weight)?,
+                weight: self.texture_for(weight, Lookup::One)?,
                 nested: [self.material(&nested[0])?, self.material(&nested[1])?],
             },
             BsdfDesc::NormalMap {
@@ -73,7 +73,7 @@ impl MaterialBuilder {
                 flip_invalid_normals,
                 use_shadowing_function,
             } => Material::NormalMap {
-                normalmap: self.texture(normalmap)?,
+                normalmap: self.texture_for(normalmap, Lookup::Three)?,
                 nested: self.material(nested)?,
                 flip_invalid_normals: *flip_invalid_normals,
                 use_shadowing_function: *use_shadowing_function,
@@ -85,7 +85,7 @@ impl MaterialBuilder {
                 flip_invalid_normals,
                 use_shadowing_function,
             } => Material::BumpMap {
-                height: self.texture(height)?,
+                height: self.texture_for(height, Lookup::One)?,
                 scale: *scale as f32,
                 nested: self.material(nested)?,
                 flip_invalid_normals: *flip_invalid_normals,
@@ -102,7 +102,12 @@ impl MaterialBuilder {
         let mut textures: Vec<(BsdfParam, Texture)> = Vec::new();
         // A colour parameter: its constant value or its texture's mean (for the template).
         let mut param = |this: &mut Self, p: BsdfParam, t: &TextureDesc| -> Result<Vec3> {
-            let tex = this.texture(t)?;
+            let lookup = if p.is_scalar() {
+                Lookup::One
+            } else {
+                Lookup::Spectrum
+            };
+            let tex = this.texture_for(t, lookup)?;
             let v = match &tex {
                 Texture::Constant { rgb, scalar } => {
                     if p.is_scalar() {
@@ -145,6 +150,24 @@ impl MaterialBuilder {
         Ok(Material::Leaf { template, textures })
     }
 
+    /// A texture from its description that will be looked up as `lookup`: in spectral mode,
+    /// one clear error where Mitsuba's spectral variants refuse that lookup at render time
+    /// ([`Texture::spectral_refusal`]).
+    pub fn texture_for(&mut self, d: &TextureDesc, lookup: Lookup) -> Result<Texture> {
+        let t = self.texture(d)?;
+        if self.mode == Mode::Spectral {
+            if let Some(e) = t.spectral_refusal(lookup) {
+                return Err(match d {
+                    TextureDesc::Bitmap(b) => {
+                        Error::scene(&b.location, format!("{}: {e}", b.filename.display()))
+                    }
+                    _ => Error::Invalid(e),
+                });
+            }
+        }
+        Ok(t)
+    }
+
     /// A texture from its description.
     pub fn texture(&mut self, d: &TextureDesc) -> Result<Texture> {
         Ok(match d {
@@ -176,17 +199,11 @@ impl MaterialBuilder {
                     },
                 }
             }
-            TextureDesc::Bitmap(_) | TextureDesc::MeshAttribute { .. } | TextureDesc::Volume(_)
-                if self.mode == Mode::Spectral =>
-            {
-                return Err(Error::Invalid(format!(
-                    "spectral mode does not support {} textures yet (issue 43); render in RGB mode",
-                    match d {
-                        TextureDesc::Bitmap(_) => "bitmap",
-                        TextureDesc::MeshAttribute { .. } => "mesh_attribute",
-                        _ => "volume",
-                    }
-                )));
+            TextureDesc::Volume(_) if self.mode == Mode::Spectral => {
+                return Err(Error::Invalid(
+                    "spectral mode does not support volume textures yet (issue 43); render in RGB mode"
+                        .into(),
+                ));
             }
             TextureDesc::Raw(v) => Texture::Constant {
                 rgb: v.as_vec3(),
@@ -205,6 +222,7 @@ impl MaterialBuilder {
                 Texture::MeshAttribute(MeshAttributeTexture {
                     name: name.clone(),
                     scale: *scale as f32,
+                    spectral: self.mode == Mode::Spectral,
                 })
             }
             TextureDesc::Bitmap(b) => {
@@ -212,8 +230,11 @@ impl MaterialBuilder {
                 let image = match self.images.iter().find(|(k, _)| *k == key) {
                     Some((_, img)) => img.clone(),
                     None => {
-                        let img = TexImage::load_with_format(&b.filename, b.raw, b.format)
-                            .map_err(|e| Error::scene(&b.location, e))?;
+                        let img = match self.mode {
+                            Mode::Rgb => TexImage::load_with_format(&b.filename, b.raw, b.format),
+                            Mode::Spectral => TexImage::load_spectral(&b.filename, b.raw, b.format),
+                        }
+                        .map_err(|e| Error::scene(&b.location, e))?;
                         let img = Arc::new(img);
                         self.images.push((key, img.clone()));
                         img

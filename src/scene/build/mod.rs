@@ -111,7 +111,12 @@ pub fn build(desc: &SceneDescription) -> Result<Scene> {
             continue;
         };
         warnings.extend(w);
-        let geometry = geometry?;
+        let mut geometry = geometry?;
+        if desc.mode == crate::spectrum::Mode::Spectral {
+            if let ShapeGeometry::Mesh(m) = &mut geometry {
+                m.upsample_color_attributes();
+            }
+        }
         let shape_index = shapes.len() as u32;
         let material = materials
             .material(&sd.bsdf)
@@ -127,7 +132,7 @@ pub fn build(desc: &SceneDescription) -> Result<Scene> {
             None => {}
             Some(EmitterDesc::Area { radiance }) => {
                 let mut radiance = materials
-                    .texture(radiance)
+                    .texture_for(radiance, crate::texture::Lookup::Spectrum)
                     .map_err(|e| Error::within(&sd.location, e))?;
                 if let crate::texture::Texture::Bitmap(b) = &mut radiance {
                     b.prepare_sampling();
@@ -157,7 +162,12 @@ pub fn build(desc: &SceneDescription) -> Result<Scene> {
     for g in &desc.shape_groups {
         let first = shapes.len();
         for sd in &g.shapes {
-            let geometry = shape_geometry(sd, DMat4::IDENTITY, &mut warnings)?;
+            let mut geometry = shape_geometry(sd, DMat4::IDENTITY, &mut warnings)?;
+            if desc.mode == crate::spectrum::Mode::Spectral {
+                if let ShapeGeometry::Mesh(m) = &mut geometry {
+                    m.upsample_color_attributes();
+                }
+            }
             let material = materials
                 .material(&sd.bsdf)
                 .map_err(|e| Error::within(&sd.location, e))?;
@@ -417,7 +427,7 @@ fn scene_emitter(
             texture,
         } => {
             let texture = match texture {
-                Some(t) => Some(textures.texture(t)?),
+                Some(t) => Some(textures.texture_for(t, crate::texture::Lookup::Spectrum)?),
                 None => None,
             };
             Emitter::Spot(
@@ -438,7 +448,7 @@ fn scene_emitter(
             fov,
             fov_axis,
         } => {
-            let irradiance = textures.texture(irradiance)?;
+            let irradiance = textures.texture_for(irradiance, crate::texture::Lookup::Spectrum)?;
             // Mitsuba: the aspect ratio of the irradiance texture's resolution (1x1 for a
             // constant).
             let (w, h) = match &irradiance {
@@ -467,12 +477,6 @@ fn scene_emitter(
         EmitterDesc::Constant { radiance } => Emitter::Constant(ConstantEmitter {
             radiance: ColorValue::new(radiance, textures.mode),
         }),
-        EmitterDesc::EnvMap { .. } if textures.mode == crate::spectrum::Mode::Spectral => {
-            return Err(Error::Invalid(
-                "spectral mode does not support the envmap emitter yet (issue 43); render in RGB mode"
-                    .into(),
-            ))
-        }
         EmitterDesc::EnvMap {
             filename,
             scale,
@@ -508,17 +512,20 @@ fn scene_emitter(
                 ));
             }
             let rot = DMat3::from_cols(x, y, z).as_mat3();
+            let new = match textures.mode {
+                crate::spectrum::Mode::Rgb => EnvMapEmitter::new,
+                crate::spectrum::Mode::Spectral => EnvMapEmitter::new_spectral,
+            };
             Emitter::EnvMap(
-                EnvMapEmitter::new(img.width, img.height, &img.rgb, *scale as f32, rot)
-                    .ok_or_else(|| {
-                        Error::scene(
-                            location,
-                            format!(
-                                "{}: an environment map needs at least 1x2 pixels",
-                                filename.display()
-                            ),
-                        )
-                    })?,
+                new(img.width, img.height, &img.rgb, *scale as f32, rot).ok_or_else(|| {
+                    Error::scene(
+                        location,
+                        format!(
+                            "{}: an environment map needs at least 1x2 pixels",
+                            filename.display()
+                        ),
+                    )
+                })?,
             )
         }
     })
