@@ -60,6 +60,10 @@ pub(crate) struct ConvergeArgs {
     #[arg(long, value_name = "DURATION", value_parser = super::render::parse_duration,
           requires = "display_server")]
     display_every: Option<std::time::Duration>,
+    /// `rgb` (default) or `spectral`: render every ladder in that mode, as `render --mode`
+    /// (compare a spectral render with a spectral reference).
+    #[arg(long, value_enum, default_value_t = super::render::ModeArg::Rgb)]
+    mode: super::render::ModeArg,
     /// No per-step progress lines on stderr.
     #[arg(short, long)]
     quiet: bool,
@@ -92,7 +96,10 @@ pub(crate) fn run_converge(args: ConvergeArgs) -> Result<()> {
         spp: args.reference_spp.or(image.spp()),
         image,
     };
-    let (variants, mode) = ex::scene_variants(&args.scene, &defines, sweep.as_ref())?;
+    let (mut variants, mode) = ex::scene_variants(&args.scene, &defines, sweep.as_ref())?;
+    for v in &mut variants {
+        v.description.mode = args.mode.into();
+    }
     let first_seed = match args.seed {
         Some(s) => s,
         None => variants[0].description.sensor.sampler.seed,

@@ -126,7 +126,7 @@ pub(crate) struct RenderArgs {
 }
 
 #[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
-enum ModeArg {
+pub(crate) enum ModeArg {
     Rgb,
     Spectral,
 }
