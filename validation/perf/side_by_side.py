@@ -20,6 +20,9 @@ Usage:
 
 With --engine (repeatable) penumbra renders each scene with each of its engines (`penumbra
 render --engine`), one row per scene and engine, against the same Mitsuba renders.
+
+A spectral entry (`mode = "spectral"`) renders with `--mode spectral` and is compared with
+Mitsuba's spectral variants (`--variants llvm_ad_spectral,scalar_spectral`).
 """
 
 import argparse
@@ -68,6 +71,8 @@ def penumbra_run(exe, scene, spp, seed, threads, tmp, engine=None):
         cmd += ["--threads", str(threads)]
     if engine:
         cmd += ["--engine", engine]
+    if scene.get("mode") == "spectral":
+        cmd += ["--mode", "spectral"]
     subprocess.run(cmd, check=True)
     seconds = json.loads(stats.read_text())["seconds"]
     return seconds, load_exr(out)
@@ -101,6 +106,10 @@ def mitsuba_runs(scene, spp, seeds, variant, threads):
     import mitsuba as mi
     import numpy as np
 
+    spectral = scene.get("mode") == "spectral"
+    if spectral != variant.endswith("_spectral"):
+        raise SystemExit(f"{scene['name']} renders in {'spectral' if spectral else 'RGB'} mode: "
+                         f"compare it with Mitsuba's matching variants, not {variant}")
     mi.set_variant(variant)
     defines = dict(scene.get("defines", {}))
     s = mi.load_file(str(ROOT / scene["file"]), **defines)
