@@ -266,37 +266,37 @@ fn command_line_parts_and_merge() {
         e
     };
     let s = scene.to_str().expect("utf-8");
-    let p = |i: u32| dir.join(format!("p{i}.pnbr")).display().to_string();
-    for i in 0..2 {
-        let o = run(&[
-            "render",
-            s,
-            "-D",
-            "res=16",
-            "--spp",
-            "600",
-            "--part",
-            &format!("{i}/2"),
-            "--quiet",
-            "-o",
-            &p(i),
-        ]);
+    // Renders parts 0/2 and 1/2 (their paths from `name`), merges them in reverse order and
+    // renders the same samples in one process, with `extra` flags; the two images.
+    let split_and_whole = |tag: &str, extra: &[&str]| {
+        let name = |i: u32| dir.join(format!("{tag}{i}.pnbr")).display().to_string();
+        let base = ["render", s, "-D", "res=16", "--spp", "600", "--quiet"];
+        for i in 0..2 {
+            let part = format!("{i}/2");
+            let out = name(i);
+            let mut args = base.to_vec();
+            args.extend(extra);
+            args.extend(["--part", &part, "-o", &out]);
+            let o = run(&args);
+            assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+        }
+        let merged = dir.join(format!("merged-{tag}.exr")).display().to_string();
+        let o = run(&["merge", &name(1), &name(0), "--quiet", "-o", &merged]);
         assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
-    }
-    let out = dir.join("merged.exr").display().to_string();
-    let o = run(&["merge", &p(1), &p(0), "--quiet", "-o", &out]);
-    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
-    let single = dir.join("single.exr").display().to_string();
-    let o = run(&[
-        "render", s, "-D", "res=16", "--spp", "600", "--quiet", "-o", &single,
-    ]);
-    assert!(o.status.success());
-    let (a, b) = (
-        penumbra::io::exr::read(std::path::Path::new(&out)).expect("merged"),
-        penumbra::io::exr::read(std::path::Path::new(&single)).expect("single"),
-    );
+        let single = dir.join(format!("single-{tag}.exr")).display().to_string();
+        let mut args = base.to_vec();
+        args.extend(extra);
+        args.extend(["-o", &single]);
+        assert!(run(&args).status.success());
+        (
+            penumbra::io::exr::read(std::path::Path::new(&merged)).expect("merged"),
+            penumbra::io::exr::read(std::path::Path::new(&single)).expect("single"),
+        )
+    };
+    let p = |i: u32| dir.join(format!("p{i}.pnbr")).display().to_string();
+    let (a, rgb_single) = split_and_whole("p", &[]);
     assert!(
-        a.rgb == b.rgb,
+        a.rgb == rgb_single.rgb,
         "merged EXR differs from the one-process render"
     );
     // Errors: one line each.
@@ -329,49 +329,11 @@ fn command_line_parts_and_merge() {
     // bit, and a spectral part does not merge with an RGB one (the mode is part of the
     // scene's identity).
     let spectral = |i: u32| dir.join(format!("s{i}.pnbr")).display().to_string();
-    for i in 0..2 {
-        let o = run(&[
-            "render",
-            s,
-            "-D",
-            "res=16",
-            "--spp",
-            "600",
-            "--part",
-            &format!("{i}/2"),
-            "--mode",
-            "spectral",
-            "--quiet",
-            "-o",
-            &spectral(i),
-        ]);
-        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
-    }
-    let merged_s = dir.join("merged-spectral.exr").display().to_string();
-    let o = run(&[
-        "merge",
-        &spectral(0),
-        &spectral(1),
-        "--quiet",
-        "-o",
-        &merged_s,
-    ]);
-    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
-    let single_s = dir.join("single-spectral.exr").display().to_string();
-    let o = run(&[
-        "render", s, "-D", "res=16", "--spp", "600", "--mode", "spectral", "--quiet", "-o",
-        &single_s,
-    ]);
-    assert!(o.status.success());
-    let (a, b) = (
-        penumbra::io::exr::read(std::path::Path::new(&merged_s)).expect("merged"),
-        penumbra::io::exr::read(std::path::Path::new(&single_s)).expect("single"),
-    );
+    let (a, b) = split_and_whole("s", &["--mode", "spectral"]);
     assert!(
         a.rgb == b.rgb,
         "merged spectral parts differ from the one-process render"
     );
-    let rgb_single = penumbra::io::exr::read(std::path::Path::new(&single)).expect("single");
     assert!(
         a.rgb != rgb_single.rgb,
         "spectral and RGB renders are the same image"

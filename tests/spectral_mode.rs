@@ -16,11 +16,13 @@
 //! seen red with the film's value biased by 1% (z 7.7 and 9.2) and with the wavelength
 //! weights (1 / pdf) replaced by a uniform density's 470 nm (z 167 and 151).
 
-use penumbra::render::{render, Job, RenderSettings};
+mod common;
+
+use common::{image_mean_and_se, render_scene, repo_path};
+use penumbra::render::Job;
 use penumbra::scene::Scene;
 use penumbra::spectrum::{cie1931_xyz, xyz_to_srgb, Mode, CIE_MAX, CIE_MIN, CIE_Y_NORMALIZATION};
 use penumbra::study::stats::{normal_two_sided_p, sidak};
-use std::path::Path;
 
 /// A piecewise linear spectrum over [360, 830] nm.
 const RHO: &[(f64, f64)] = &[
@@ -65,31 +67,12 @@ fn expected_rgb(f: impl Fn(f64) -> f64) -> [f64; 3] {
 
 /// Renders `xml` in spectral mode; returns the image mean and its standard error per channel.
 fn render_mean(xml: &str, spp: u32) -> ([f64; 3], [f64; 3]) {
-    let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/inline.xml");
-    let mut desc = Scene::description_from_xml_str(xml, &path, &[]).expect("scene");
+    let mut desc =
+        Scene::description_from_xml_str(xml, &repo_path("tests/inline.xml"), &[]).expect("scene");
     desc.mode = Mode::Spectral;
-    let job = Job::build(&desc).expect("build");
-    let out = render(
-        &job.scene,
-        &job.integrator,
-        &RenderSettings {
-            spp,
-            first_sample: 0,
-            seed: 11,
-            threads: None,
-            sampler: None,
-        },
-        &|_, _| {},
-    )
-    .expect("render");
+    let out = render_scene(&Job::build(&desc).expect("build"), spp, 11, None);
     assert_eq!(out.stats.nonfinite, 0);
-    let image = out.film.image();
-    let var = out.film.sample_variance();
-    let n = image.len() as f64;
-    let mean = [0, 1, 2].map(|c| image.iter().map(|p| p[c] as f64).sum::<f64>() / n);
-    let se =
-        [0, 1, 2].map(|c| (var.iter().map(|p| p[c] as f64).sum::<f64>() / spp as f64).sqrt() / n);
-    (mean, se)
+    image_mean_and_se(&out, spp)
 }
 
 fn check(name: &str, mean: [f64; 3], se: [f64; 3], expected: [f64; 3]) {

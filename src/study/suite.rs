@@ -25,7 +25,7 @@ use crate::error::Error;
 use crate::io::exr;
 use crate::render::{render, Job, RenderSettings};
 use crate::spectrum::Mode;
-use crate::study::stats::{normal_two_sided_p, sidak};
+use crate::study::stats::{normal_critical_z, normal_two_sided_p, sidak};
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
@@ -130,6 +130,19 @@ pub enum Outcome {
 }
 
 impl Judgement {
+    /// The image-mean test's negative control for channel `c`: where the test at level
+    /// `alpha` has at least 95% power to see the render's mean scaled by `k`
+    /// (|k − 1| · mean / se ≥ z_α + 1.645), the z of the render × `k` against the reference;
+    /// `None` where it has not.
+    pub fn scaled_mean_z(&self, c: usize, k: f64, alpha: f64) -> Option<f64> {
+        let shift = (k - 1.0) * self.reference_mean[c].abs() / self.mean_se[c];
+        (shift.abs() >= normal_critical_z(alpha) + 1.645).then(|| {
+            self.mean_z[c]
+                + (k - 1.0) * self.reference_mean[c] * (1.0 + self.mean_rel_diff[c])
+                    / self.mean_se[c]
+        })
+    }
+
     /// `pass` or `FAIL`, the share of passing pixel-channels and the mean differences, for
     /// tables and logs.
     pub fn summary(&self) -> String {
