@@ -503,7 +503,31 @@ fn render_particles(
                             size,
                             settings.first_sample + s as u64,
                         );
-                        pt.trace(scene, &mut stream, &mut row.stats, &mut row.splats);
+                        match scene.mode {
+                            Mode::Rgb => pt.trace(
+                                scene,
+                                NO_WAVELENGTHS,
+                                &mut stream,
+                                &mut row.stats,
+                                &mut row.splats,
+                            ),
+                            Mode::Spectral => {
+                                // Four wavelengths per particle, drawn as for camera paths
+                                // (Mitsuba draws them from the emitter's spectrum: the same
+                                // expectation, another variance); each splat is converted
+                                // to linear sRGB with the wavelengths' weights.
+                                let first = row.splats.len();
+                                let (wl, weight) =
+                                    crate::spectral::sample_wavelengths(stream.next_1d());
+                                pt.trace(scene, wl, &mut stream, &mut row.stats, &mut row.splats);
+                                for sp in &mut row.splats[first..] {
+                                    sp.value = from_rgb(crate::spectral::spectrum_to_srgb(
+                                        sp.value * weight,
+                                        wl,
+                                    ));
+                                }
+                            }
+                        }
                     }
                     row
                 })

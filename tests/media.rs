@@ -889,7 +889,7 @@ fn gridvolume_wrap_modes_beyond_the_unit_cube() {
                 other => panic!("not heterogeneous: {other:?}"),
             };
             for (f, p, want) in cases.iter().filter(|c| c.0 == filter) {
-                let got = sigma_t.eval(Vec3::new(p[0], p[1], p[2]));
+                let got = sigma_t.eval_rgb(Vec3::new(p[0], p[1], p[2]));
                 assert!(
                     (got - Vec3::splat(want[w])).abs().max_element() < 1e-5,
                     "{f} {wrap} at {p:?}: {got} against {}",

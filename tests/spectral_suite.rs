@@ -3,9 +3,8 @@
 //! Mitsuba's spectral references (`<name>_ref_spectral.exr`, scalar_spectral), plus the image
 //! mean test of tests/mitsuba_suite.rs (Šidák over the 123 scene-channels).
 //!
-//! The scenes spectral mode cannot render yet are listed in [`REFUSED`] with the construct
-//! that stops them; the test fails if one of them renders (the list is stale) or if another
-//! scene is refused. Negative controls: the mean test must flag the render × 1.01 wherever
+//! Every one of the 41 scenes must render and pass: media (volpath, volpathmis, spectral σt
+//! from constants and grids) and the particle tracer included; a refusal is a failure. Negative controls: the mean test must flag the render × 1.01 wherever
 //! its power to see 1% is at least 95% (as tests/mitsuba_suite.rs), and each judged scene
 //! rendered in RGB mode against the same spectral reference must fail the checks wherever the
 //! RGB render's mean lies more than 8 standard errors from the spectral render's (the
@@ -19,53 +18,6 @@ use penumbra::spectrum::Mode;
 use penumbra::study::stats::{normal_two_sided_p, sidak};
 use penumbra::study::suite::{self, Outcome, SuiteScene};
 use std::path::Path;
-
-/// Scenes spectral mode refuses today, with (part of) the one-line reason it gives.
-const REFUSED: &[(&str, &str)] = &[
-    (
-        "participating_media/test_hetero_sigmat_albedo_volpath",
-        "media",
-    ),
-    ("participating_media/test_hetero_sigmat_volpath", "media"),
-    (
-        "participating_media/test_hetero_spectral_sigmat_no_scattering_volpath",
-        "media",
-    ),
-    (
-        "participating_media/test_hetero_spectral_sigmat_volpathmis",
-        "media",
-    ),
-    ("participating_media/test_homo_area_light_volpath", "media"),
-    (
-        "participating_media/test_homo_dielectric_envmap_volpath",
-        "media",
-    ),
-    (
-        "participating_media/test_homo_emitter_inside_medium_volpath",
-        "media",
-    ),
-    ("participating_media/test_homo_null_envmap_volpath", "media"),
-    (
-        "participating_media/test_homo_obj_inside_medium_volpath",
-        "media",
-    ),
-    (
-        "participating_media/test_homo_roughdielectric_spot_volpath",
-        "media",
-    ),
-    (
-        "participating_media/test_homo_spectral_sigmat_volpathmis",
-        "media",
-    ),
-    (
-        "participating_media/test_surf_area_light_volpath",
-        "volpath renders in RGB mode only",
-    ),
-    (
-        "various_emitters/test_various_emitters_ptracer",
-        "ptracer renders in RGB mode only",
-    ),
-];
 
 #[test]
 #[ignore = "full tier: cargo test --release -- --ignored"]
@@ -82,7 +34,6 @@ fn mitsuba_suite_in_spectral_mode() {
     let alpha = sidak(suite::SIGNIFICANCE, 3 * scenes.len());
     let mut controls = 0;
     let mut failures = Vec::new();
-    let mut refused = Vec::new();
     let mut judged = Vec::new();
     for s in &scenes {
         match suite::run(s, None) {
@@ -127,30 +78,18 @@ fn mitsuba_suite_in_spectral_mode() {
             }
             Outcome::Unsupported(e) => {
                 println!("{:<62} refused: {e}", s.name);
-                match REFUSED.iter().find(|(n, _)| *n == s.name) {
-                    Some((_, why)) if e.contains(why) => refused.push(s.name.clone()),
-                    Some((_, why)) => failures.push(format!(
-                        "{} is refused for another reason than '{why}': {e}",
-                        s.name
-                    )),
-                    None => {
-                        failures.push(format!("{} does not render in spectral mode: {e}", s.name))
-                    }
-                }
+                failures.push(format!("{} does not render in spectral mode: {e}", s.name))
             }
         }
     }
-    for (name, _) in REFUSED {
-        if !refused.iter().any(|r| r == name) {
-            failures.push(format!("{name} renders now: take it off REFUSED"));
-        }
+    println!("spectral mode: {} judged of {}", judged.len(), scenes.len());
+    if judged.len() != scenes.len() {
+        failures.push(format!(
+            "only {} of {} scenes were judged",
+            judged.len(),
+            scenes.len()
+        ));
     }
-    println!(
-        "spectral mode: {} judged, {} refused of {}",
-        judged.len(),
-        refused.len(),
-        scenes.len()
-    );
     // Negative control: RGB mode against the spectral references.
     let mut resolvable = 0;
     for (s, j) in &judged {

@@ -366,6 +366,16 @@ fn spectral_refusals_are_mitsubas() {
             bitmap("alpha", rgb, r#"<boolean name="raw" value="true"/>"#)
         )),
         r#"<emitter type="envmap"><string name="filename" value="spectral/env_rgb.exr"/></emitter>"#.into(),
+        // Media: a three-channel grid becomes spectra; raw one-channel data is fine.
+        format!(
+            r#"<medium type="heterogeneous" id="m">{}</medium>{}"#,
+            r#"<volume type="gridvolume" name="albedo"><string name="filename" value="spectral/rgb2.vol"/></volume>"#,
+            sphere(r#"<bsdf type="null"/><ref name="interior" id="m"/>"#.into())
+        ),
+        format!(
+            r#"<medium type="homogeneous" id="m"><rgb name="sigma_t" value="0.5, 0.4, 0.3"/></medium>{}"#,
+            sphere(r#"<bsdf type="null"/><ref name="interior" id="m"/>"#.into())
+        ),
     ];
     for body in &ok {
         build_spectral(body).unwrap_or_else(|e| panic!("{body}: {e}"));
@@ -402,6 +412,14 @@ fn spectral_refusals_are_mitsubas() {
                 )
             )),
             "format=\"uint8\" is not supported in spectral mode",
+        ),
+        (
+            format!(
+                r#"<medium type="heterogeneous" id="m">{}</medium>{}"#,
+                r#"<volume type="gridvolume" name="sigma_t"><string name="filename" value="spectral/rgb2.vol"/><boolean name="raw" value="true"/></volume>"#,
+                sphere(r#"<bsdf type="null"/><ref name="interior" id="m"/>"#.into())
+            ),
+            "raw=\"true\" cannot be looked up as a spectrum",
         ),
     ];
     let wrong: Vec<String> = refused

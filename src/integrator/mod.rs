@@ -79,7 +79,14 @@ impl Integrator {
     /// The plugin name, as in a scene file (radiosity is penumbra's own).
     /// Whether the integrator renders in spectral mode (`--mode spectral`) yet.
     pub fn supports_spectral(&self) -> bool {
-        matches!(self, Integrator::Path(_) | Integrator::Direct(_))
+        matches!(
+            self,
+            Integrator::Path(_)
+                | Integrator::Direct(_)
+                | Integrator::VolPath(_)
+                | Integrator::VolPathMis(_)
+                | Integrator::ParticleTracer(_)
+        )
     }
 
     pub fn name(&self) -> &'static str {
@@ -113,8 +120,8 @@ impl Integrator {
             Integrator::Whitted(w) => w.li(scene, ray, sampler, stats),
             Integrator::Aov(a) => a.li(scene, ray, sampler, stats),
             Integrator::Radiosity(r) => r.li_with_solution(scene, ray, sampler, stats),
-            Integrator::VolPath(v) => v.li(scene, ray, sampler, stats),
-            Integrator::VolPathMis(v) => v.li(scene, ray, sampler, stats),
+            Integrator::VolPath(v) => v.li(scene, ray, wl, sampler, stats),
+            Integrator::VolPathMis(v) => v.li(scene, ray, wl, sampler, stats),
             // The render driver never asks a light tracer for camera-ray radiance.
             Integrator::ParticleTracer(_) | Integrator::Sppm(_) | Integrator::Bdpt(_) => {
                 Spectrum::ZERO

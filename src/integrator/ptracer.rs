@@ -27,8 +27,7 @@ use crate::integrator::PathStats;
 use crate::sampler::SampleStream;
 use crate::scene::Scene;
 use crate::spectrum::Spectrum;
-use crate::spectrum::NO_WAVELENGTHS;
-use glam::{Vec2, Vec3};
+use glam::{Vec2, Vec3, Vec4};
 
 #[derive(Clone, Debug)]
 pub struct ParticleTracer {
@@ -130,11 +129,13 @@ pub(crate) fn sees_camera(
 }
 
 impl ParticleTracer {
-    /// Traces one particle, pushing its contributions (weight 1 each: the caller divides by
-    /// the samples per pixel) to `splats`.
+    /// Traces one particle at wavelengths `wl` (ignored in RGB mode), pushing its
+    /// contributions (weight 1 each: the caller divides by the samples per pixel and, in
+    /// spectral mode, converts them to RGB with the wavelengths' weights) to `splats`.
     pub fn trace(
         &self,
         scene: &Scene,
+        wl: Vec4,
         sampler: &mut SampleStream,
         stats: &mut PathStats,
         splats: &mut Vec<Splat>,
@@ -143,9 +144,9 @@ impl ParticleTracer {
             return;
         }
         if !self.hide_emitters {
-            self.sample_visible_emitter(scene, sampler, stats, splats);
+            self.sample_visible_emitter(scene, wl, sampler, stats, splats);
         }
-        self.trace_light_path(scene, sampler, stats, splats);
+        self.trace_light_path(scene, wl, sampler, stats, splats);
     }
 
     /// Picks an emitter as [`Scene::sample_emitter_direction`] does: its index and the
@@ -161,6 +162,7 @@ impl ParticleTracer {
     fn sample_visible_emitter(
         &self,
         scene: &Scene,
+        wl: Vec4,
         sampler: &mut SampleStream,
         stats: &mut PathStats,
         splats: &mut Vec<Splat>,
@@ -172,9 +174,9 @@ impl ParticleTracer {
             return;
         }
         if emitter.is_environment() {
-            return self.environment_from_camera(scene, i, count, u, stats, splats);
+            return self.environment_from_camera(scene, wl, i, count, u, stats, splats);
         }
-        let Some(pos) = emitter.sample_position(u, &scene.shapes, NO_WAVELENGTHS) else {
+        let Some(pos) = emitter.sample_position(u, &scene.shapes, wl) else {
             return;
         };
         let Some(c) = scene.camera.sample_direction(pos.p) else {
@@ -202,9 +204,11 @@ impl ParticleTracer {
     /// pinhole, unoccluded to infinity. With W_e the camera's importance along it and p_ω
     /// the density, the contribution is L W_e / p_ω (the distance terms of Mitsuba's
     /// area-measure form cancel).
+    #[allow(clippy::too_many_arguments)]
     fn environment_from_camera(
         &self,
         scene: &Scene,
+        wl: Vec4,
         i: usize,
         count: f32,
         u: Vec2,
@@ -212,8 +216,7 @@ impl ParticleTracer {
         splats: &mut Vec<Splat>,
     ) {
         let origin = scene.camera.position();
-        let Some(ds) = scene.emitters[i].sample_direction(origin, u, &scene.shapes, NO_WAVELENGTHS)
-        else {
+        let Some(ds) = scene.emitters[i].sample_direction(origin, u, &scene.shapes, wl) else {
             return;
         };
         // A point at distance 1 along the direction carries W_e / 1².
@@ -238,6 +241,7 @@ impl ParticleTracer {
     fn trace_light_path(
         &self,
         scene: &Scene,
+        wl: Vec4,
         sampler: &mut SampleStream,
         stats: &mut PathStats,
         splats: &mut Vec<Splat>,
@@ -245,13 +249,9 @@ impl ParticleTracer {
         let (i, count) = Self::pick_emitter(scene, sampler.next_1d());
         let u_dir = sampler.next_2d();
         let u_pos = sampler.next_2d();
-        let Some(er) = scene.emitters[i].sample_ray(
-            u_pos,
-            u_dir,
-            &scene.shapes,
-            scene.bounding_sphere,
-            NO_WAVELENGTHS,
-        ) else {
+        let Some(er) =
+            scene.emitters[i].sample_ray(u_pos, u_dir, &scene.shapes, scene.bounding_sphere, wl)
+        else {
             return;
         };
         let mut ray = er.ray;
@@ -266,7 +266,7 @@ impl ParticleTracer {
                 break;
             };
             stats.bounces += 1;
-            scene.shading_bsdf_into(&si, NO_WAVELENGTHS, &mut bsdf);
+            scene.shading_bsdf_into(&si, wl, &mut bsdf);
             bsdf.set_importance();
             // Towards where the light came from.
             let wi_world = -ray.d.normalize();

@@ -8,7 +8,10 @@
 //!
 //! Mitsuba's semantics, followed exactly:
 //! - RGB media are tracked in one channel per path, chosen uniformly at the start; the other
-//!   channels are weighed by their transmittance over that channel's free-flight density.
+//!   channels are weighed by their transmittance over that channel's free-flight density. In
+//!   spectral mode the path's first wavelength drives the tracking (Mitsuba's `channel` 0;
+//!   the four wavelengths are sampled with random offsets, so it is a random one) and means
+//!   over channels run over the four wavelengths.
 //! - Depth counts scattering events: surface bounces that are not `null` events, and real
 //!   medium collisions; null surfaces (`null`, a mask's holes, a thin dielectric's straight
 //!   transmission) and null collisions do not count. `max_depth` −1 is unbounded.
@@ -29,14 +32,13 @@ use crate::emitter::DirectionSample;
 use crate::geometry::Ray;
 use crate::integrator::{emission_at, emitter_pdf_at, PathStats};
 use crate::material::ShadingBsdf;
-use crate::medium::{mean3, safe_div3, transmittance, Medium, MediumInteraction};
+use crate::medium::{mean, safe_div, transmittance, Medium, MediumInteraction};
 use crate::sampler::SampleStream;
 use crate::sampling::mis_power;
 use crate::scene::Scene;
 use crate::shape::SurfaceInteraction;
-use crate::spectrum::NO_WAVELENGTHS;
-use crate::spectrum::{from_rgb, to_rgb, Spectrum};
-use glam::Vec3;
+use crate::spectrum::{Mode, Spectrum};
+use glam::{Vec3, Vec4};
 
 #[derive(Clone, Debug)]
 pub struct VolPathIntegrator {
@@ -57,24 +59,28 @@ pub(crate) enum Vertex<'a> {
 /// `volpath`) or the MIS weight matrices (for `volpathmis`).
 pub(crate) trait ShadowWeights {
     /// A sampled free-flight segment: majorant transmittance `tr` and its density `pdf`.
-    fn segment(&mut self, tr: Vec3, pdf: Vec3, channel: usize);
+    fn segment(&mut self, tr: Spectrum, pdf: Spectrum, channel: usize);
     /// A null collision `mi` passed through (ratio tracking).
     fn collision(&mut self, mi: &MediumInteraction, channel: usize);
     /// A surface crossed with null transmission `t`.
-    fn surface(&mut self, t: Vec3, channel: usize);
+    fn surface(&mut self, t: Spectrum, channel: usize);
     /// Nothing more can arrive.
     fn is_zero(&self) -> bool;
 }
 
-/// Picks the RGB channel that drives distance sampling for a whole path.
+/// Picks the channel that drives distance sampling for a whole path: one of R, G, B in RGB
+/// mode, the first wavelength in spectral mode (Mitsuba's spectral variants).
 #[inline]
-pub(crate) fn pick_channel(u: f32) -> usize {
-    ((u * 3.0) as usize).min(2)
+pub(crate) fn pick_channel(u: f32, mode: Mode) -> usize {
+    match mode {
+        Mode::Rgb => ((u * 3.0) as usize).min(2),
+        Mode::Spectral => 0,
+    }
 }
 
 /// The value of channel `c`.
 #[inline]
-pub(crate) fn channel_of(v: Vec3, c: usize) -> f32 {
+pub(crate) fn channel_of(v: Spectrum, c: usize) -> f32 {
     v[c]
 }
 
@@ -91,10 +97,11 @@ pub(crate) fn track_step(
     limit: f32,
     hit: &mut Option<Option<SurfaceInteraction>>,
     channel: usize,
+    wl: Vec4,
     sampler: &mut SampleStream,
     stats: &mut PathStats,
 ) -> (MediumInteraction, f32) {
-    let mut mi = med.sample_interaction(ray, sampler.next_1d(), channel);
+    let mut mi = med.sample_interaction(ray, sampler.next_1d(), channel, wl);
     if med.is_homogeneous() && mi.is_valid() {
         ray.tmax = mi.t.min(limit);
     }
@@ -132,6 +139,7 @@ pub(crate) fn trace_shadow<W: ShadowWeights>(
     ds: &DirectionSample,
     mut medium: Option<u32>,
     channel: usize,
+    wl: Vec4,
     sampler: &mut SampleStream,
     stats: &mut PathStats,
     w: &mut W,
@@ -147,7 +155,7 @@ pub(crate) fn trace_shadow<W: ShadowWeights>(
         // No media and nothing to see through: any surface blocks the light.
         stats.rays += 1;
         if scene.occluded(&ray) {
-            w.surface(Vec3::ZERO, channel);
+            w.surface(Spectrum::ZERO, channel);
         }
         return;
     }
@@ -169,7 +177,7 @@ pub(crate) fn trace_shadow<W: ShadowWeights>(
         if let Some(m) = medium {
             let med = &scene.media[m as usize];
             let (mut mi, si_t) = track_step(
-                scene, med, &mut ray, remaining, &mut hit, channel, sampler, stats,
+                scene, med, &mut ray, remaining, &mut hit, channel, wl, sampler, stats,
             );
             let t = mi.segment(remaining.min(si_t));
             let tr = transmittance(t, mi.combined_extinction);
@@ -204,11 +212,8 @@ pub(crate) fn trace_shadow<W: ShadowWeights>(
             return;
         };
         total += si.t;
-        let bsdf = scene.shading_bsdf(&si, NO_WAVELENGTHS);
-        w.surface(
-            to_rgb(bsdf.null_transmission(si.frame.to_local(-ray.d))),
-            channel,
-        );
+        let bsdf = scene.shading_bsdf(&si, wl);
+        w.surface(bsdf.null_transmission(si.frame.to_local(-ray.d)), channel);
         if w.is_zero() {
             return;
         }
@@ -220,25 +225,25 @@ pub(crate) fn trace_shadow<W: ShadowWeights>(
 }
 
 /// `volpath`'s shadow-ray weight: the transmittance estimate.
-struct Transmittance(Vec3);
+struct Transmittance(Spectrum);
 
 impl ShadowWeights for Transmittance {
     #[inline]
-    fn segment(&mut self, tr: Vec3, pdf: Vec3, channel: usize) {
+    fn segment(&mut self, tr: Spectrum, pdf: Spectrum, channel: usize) {
         let p = channel_of(pdf, channel);
-        self.0 *= if p > 0.0 { tr / p } else { Vec3::ZERO };
+        self.0 *= if p > 0.0 { tr / p } else { Spectrum::ZERO };
     }
     #[inline]
     fn collision(&mut self, mi: &MediumInteraction, _channel: usize) {
         self.0 *= mi.sigma_n;
     }
     #[inline]
-    fn surface(&mut self, t: Vec3, _channel: usize) {
+    fn surface(&mut self, t: Spectrum, _channel: usize) {
         self.0 *= t;
     }
     #[inline]
     fn is_zero(&self) -> bool {
-        self.0 == Vec3::ZERO || !self.0.is_finite()
+        self.0 == Spectrum::ZERO || !self.0.is_finite()
     }
 }
 
@@ -250,6 +255,7 @@ impl VolPathIntegrator {
         from: Vertex,
         medium: Option<u32>,
         channel: usize,
+        wl: Vec4,
         sampler: &mut SampleStream,
         stats: &mut PathStats,
     ) -> Option<(Spectrum, DirectionSample)> {
@@ -257,22 +263,25 @@ impl VolPathIntegrator {
             Vertex::Surface(si) => si.p,
             Vertex::Medium(p) => p,
         };
-        let ds = scene.sample_emitter_direction_at(p, sampler.next_2d(), NO_WAVELENGTHS)?;
+        let ds = scene.sample_emitter_direction_at(p, sampler.next_2d(), wl)?;
         if ds.pdf.is_nan() || ds.pdf <= 0.0 {
             return None;
         }
-        let mut tr = Transmittance(Vec3::ONE);
-        trace_shadow(scene, from, &ds, medium, channel, sampler, stats, &mut tr);
+        let mut tr = Transmittance(Spectrum::ONE);
+        trace_shadow(
+            scene, from, &ds, medium, channel, wl, sampler, stats, &mut tr,
+        );
         if tr.is_zero() {
             return None;
         }
-        Some((from_rgb(tr.0) * ds.radiance / ds.pdf, ds))
+        Some((tr.0 * ds.radiance / ds.pdf, ds))
     }
 
     pub fn li(
         &self,
         scene: &Scene,
         ray: Ray,
+        wl: Vec4,
         sampler: &mut SampleStream,
         stats: &mut PathStats,
     ) -> Spectrum {
@@ -283,7 +292,8 @@ impl VolPathIntegrator {
         let mut depth = 0u32;
         let mut medium = scene.camera_medium;
         let mut specular_chain = !self.hide_emitters;
-        let channel = pick_channel(sampler.next_1d());
+        let mode = scene.mode;
+        let channel = pick_channel(sampler.next_1d(), mode);
         // The closest surface along the current ray, once intersected.
         let mut hit: Option<Option<SurfaceInteraction>> = None;
         let mut last_scatter_p = ray.o;
@@ -318,21 +328,22 @@ impl VolPathIntegrator {
                     f32::INFINITY,
                     &mut hit,
                     channel,
+                    wl,
                     sampler,
                     stats,
                 );
                 let (tr, pdf) = Medium::transmittance_eval_pdf(&mi, si_t);
                 let tr_pdf = channel_of(pdf, channel);
-                throughput *= from_rgb(if tr_pdf > 0.0 {
+                throughput *= if tr_pdf > 0.0 {
                     tr / tr_pdf
                 } else {
-                    Vec3::ZERO
-                });
+                    Spectrum::ZERO
+                };
                 if mi.is_valid() {
-                    let null_prob = mean3(safe_div3(mi.sigma_n, mi.combined_extinction));
+                    let null_prob = mean(safe_div(mi.sigma_n, mi.combined_extinction), mode);
                     if sampler.next_1d() < null_prob {
                         // A null collision: continue along the ray from there.
-                        throughput *= from_rgb(mi.sigma_n / null_prob);
+                        throughput *= mi.sigma_n / null_prob;
                         pass_collision(&mut ray, &mut hit, &mi);
                         continue;
                     }
@@ -343,7 +354,7 @@ impl VolPathIntegrator {
                     }
                     stats.bounces += 1;
                     throughput *=
-                        from_rgb(mi.sigma_s / mean3(safe_div3(mi.sigma_t, mi.combined_extinction)));
+                        mi.sigma_s / mean(safe_div(mi.sigma_t, mi.combined_extinction), mode);
                     last_scatter_p = mi.p;
                     specular_chain = !med.sample_emitters;
                     if med.sample_emitters {
@@ -352,6 +363,7 @@ impl VolPathIntegrator {
                             Vertex::Medium(mi.p),
                             medium,
                             channel,
+                            wl,
                             sampler,
                             stats,
                         ) {
@@ -389,7 +401,7 @@ impl VolPathIntegrator {
                 si = super::pass_through_emitters(scene, ray.d, si, stats);
             }
             if !(depth == 0 && self.hide_emitters) {
-                let le = emission_at(scene, si.as_ref(), ray.d, NO_WAVELENGTHS);
+                let le = emission_at(scene, si.as_ref(), ray.d, wl);
                 if le != Spectrum::ZERO {
                     let count_direct = depth == 0 || specular_chain;
                     let w = if count_direct {
@@ -406,7 +418,7 @@ impl VolPathIntegrator {
             let Some(si) = si else {
                 break;
             };
-            let bsdf = scene.bsdf_at(&si, NO_WAVELENGTHS, &mut bsdf_buf);
+            let bsdf = scene.bsdf_at(&si, wl, &mut bsdf_buf);
             let wi = si.frame.to_local(-ray.d);
 
             // Next-event estimation.
@@ -416,6 +428,7 @@ impl VolPathIntegrator {
                     Vertex::Surface(&si),
                     medium,
                     channel,
+                    wl,
                     sampler,
                     stats,
                 ) {

@@ -3,13 +3,15 @@
 //! transport"), Mitsuba 3's `VolpathMisIntegratorImpl`.
 //!
 //! The same paths as [`super::volpath`] (one RGB channel drives distance sampling, chosen per
-//! path), but every estimate is weighted by the balance heuristic over all the ways the path
-//! could have been made: the three channels' tracking densities (spectral MIS: the estimate
+//! path; in spectral mode the first of the path's four wavelengths), but every estimate is
+//! weighted by the balance heuristic over all the ways the path could have been made: the
+//! channels' tracking densities (three in RGB mode, four wavelengths in spectral mode, as
+//! Mitsuba's `dr::size_v<Spectrum>`; spectral MIS: the estimate
 //! of channel i is f_i / mean_j p_j, the one-sample MIS of Veach 1997 §9.2.4, which removes
 //! the fireflies of a channel with a much lower extinction) and, for emitter hits, unidirectional
 //! sampling against next-event estimation, whose density includes the ratio-tracked shadow
 //! ray's. The path keeps, instead of a throughput, the ratios p / f of every event's density
-//! to its contribution: a 3 × 3 matrix (p_j / f_i) with spectral MIS, a vector
+//! to its contribution: an n × n matrix (p_j / f_i) with spectral MIS, a vector
 //! (p_channel / f_i) without (`use_spectral_mis` false).
 //!
 //! Depth, Russian roulette (not after null collisions), media transitions and
@@ -31,13 +33,12 @@ use crate::emitter::DirectionSample;
 use crate::geometry::Ray;
 use crate::integrator::{emission_at, emitter_pdf_at, PathStats};
 use crate::material::ShadingBsdf;
-use crate::medium::{mean3, safe_div3, Medium, MediumInteraction};
+use crate::medium::{mean, safe_div, Medium, MediumInteraction};
 use crate::sampler::SampleStream;
 use crate::scene::Scene;
 use crate::shape::SurfaceInteraction;
-use crate::spectrum::NO_WAVELENGTHS;
-use crate::spectrum::{from_rgb, to_rgb, Spectrum};
-use glam::Vec3;
+use crate::spectrum::{Mode, Spectrum};
+use glam::Vec4;
 
 #[derive(Clone, Debug)]
 pub struct VolPathMisIntegrator {
@@ -54,83 +55,95 @@ pub struct VolPathMisIntegrator {
 trait MisWeights: Copy {
     fn ones() -> Self;
     /// Multiplies in one event of densities `p` (per channel) and contributions `f`.
-    fn update(&mut self, p: Vec3, f: Vec3, channel: usize);
+    fn update(&mut self, p: Spectrum, f: Spectrum, channel: usize);
     /// The estimate's weight per channel, f / p (balance heuristic over the channels).
-    fn weight(&self) -> Vec3;
+    fn weight(&self) -> Spectrum;
     /// The weight against a second strategy's ratios (balance heuristic over both).
-    fn weight2(&self, other: &Self) -> Vec3;
+    fn weight2(&self, other: &Self) -> Spectrum;
     /// A shadow ray with these unidirectional and NEE ratios can contribute nothing more.
     fn shadow_dead(uni: &Self, nee: &Self) -> bool;
 }
 
-fn finite_or_zero(v: Vec3) -> Vec3 {
+fn finite_or_zero(v: Spectrum) -> Spectrum {
     let f = |x: f32| if x.is_finite() { x } else { 0.0 };
-    Vec3::new(f(v.x), f(v.y), f(v.z))
+    Spectrum::new(f(v.x), f(v.y), f(v.z), f(v.w))
 }
 
-/// Spectral MIS: row i holds (p_j / f_i) over channels j.
+/// Spectral MIS over `N` channels (3 in RGB mode, 4 wavelengths in spectral mode): row i
+/// holds (p_j / f_i) over channels j < N. In RGB mode row 3 and every row's lane 3 are
+/// carried along but never read: the weight's lane 3 is lane 1's, green's copy.
 #[derive(Clone, Copy)]
-struct SpectralMis([Vec3; 3]);
+struct SpectralMis<const N: usize>([Spectrum; 4]);
 
-impl MisWeights for SpectralMis {
+impl<const N: usize> MisWeights for SpectralMis<N> {
     fn ones() -> Self {
-        SpectralMis([Vec3::ONE; 3])
+        SpectralMis([Spectrum::ONE; 4])
     }
     #[inline]
-    fn update(&mut self, p: Vec3, f: Vec3, _channel: usize) {
-        for i in 0..3 {
+    fn update(&mut self, p: Spectrum, f: Spectrum, _channel: usize) {
+        for i in 0..N {
             let r = finite_or_zero(p / f[i]) * self.0[i];
             let nan0 = |x: f32| if x.is_nan() { 0.0 } else { x };
-            self.0[i] = Vec3::new(nan0(r.x), nan0(r.y), nan0(r.z));
+            self.0[i] = Spectrum::new(nan0(r.x), nan0(r.y), nan0(r.z), nan0(r.w));
         }
     }
     #[inline]
-    fn weight(&self) -> Vec3 {
-        let w = |row: Vec3| {
-            let s = row.x + row.y + row.z;
+    fn weight(&self) -> Spectrum {
+        let w = |row: Spectrum| {
+            let s = if N == 3 {
+                row.x + row.y + row.z
+            } else {
+                row.x + row.y + row.z + row.w
+            };
             if s == 0.0 {
                 0.0
             } else {
-                3.0 / s
+                N as f32 / s
             }
         };
-        Vec3::new(w(self.0[0]), w(self.0[1]), w(self.0[2]))
+        let g = w(self.0[1]);
+        Spectrum::new(
+            w(self.0[0]),
+            g,
+            w(self.0[2]),
+            if N == 3 { g } else { w(self.0[3]) },
+        )
     }
     #[inline]
-    fn weight2(&self, o: &Self) -> Vec3 {
-        SpectralMis([self.0[0] + o.0[0], self.0[1] + o.0[1], self.0[2] + o.0[2]]).weight()
+    fn weight2(&self, o: &Self) -> Spectrum {
+        SpectralMis::<N>(std::array::from_fn(|i| self.0[i] + o.0[i])).weight()
     }
     fn shadow_dead(uni: &Self, _nee: &Self) -> bool {
-        uni.weight() == Vec3::ZERO
+        uni.weight() == Spectrum::ZERO
     }
 }
 
 /// Without spectral MIS: (p_channel / f_i) per channel i.
 #[derive(Clone, Copy)]
-struct HeroMis(Vec3);
+struct HeroMis(Spectrum);
 
 impl MisWeights for HeroMis {
     fn ones() -> Self {
-        HeroMis(Vec3::ONE)
+        HeroMis(Spectrum::ONE)
     }
     #[inline]
-    fn update(&mut self, p: Vec3, f: Vec3, channel: usize) {
+    fn update(&mut self, p: Spectrum, f: Spectrum, channel: usize) {
         self.0 = finite_or_zero(self.0 * (p[channel] / f));
     }
     #[inline]
-    fn weight(&self) -> Vec3 {
+    fn weight(&self) -> Spectrum {
         if self.0.abs().min_element() == 0.0 {
-            Vec3::ZERO
+            Spectrum::ZERO
         } else {
             self.0.recip()
         }
     }
     #[inline]
-    fn weight2(&self, o: &Self) -> Vec3 {
+    fn weight2(&self, o: &Self) -> Spectrum {
         HeroMis(self.0 + o.0).weight()
     }
     fn shadow_dead(uni: &Self, nee: &Self) -> bool {
-        uni.0 == Vec3::ZERO && nee.0 == Vec3::ZERO
+        uni.0 == Spectrum::ZERO && nee.0 == Spectrum::ZERO
     }
 }
 
@@ -138,24 +151,26 @@ impl MisWeights for HeroMis {
 struct ShadowMis<W> {
     nee: W,
     uni: W,
+    mode: Mode,
 }
 
 impl<W: MisWeights> ShadowWeights for ShadowMis<W> {
     #[inline]
-    fn segment(&mut self, tr: Vec3, pdf: Vec3, channel: usize) {
+    fn segment(&mut self, tr: Spectrum, pdf: Spectrum, channel: usize) {
         self.nee.update(pdf, tr, channel);
         self.uni.update(pdf, tr, channel);
     }
     #[inline]
     fn collision(&mut self, mi: &MediumInteraction, channel: usize) {
-        self.nee.update(Vec3::ONE, mi.sigma_n, channel);
-        let p_null = mean3(safe_div3(mi.sigma_n, mi.combined_extinction));
-        self.uni.update(Vec3::splat(p_null), mi.sigma_n, channel);
+        self.nee.update(Spectrum::ONE, mi.sigma_n, channel);
+        let p_null = mean(safe_div(mi.sigma_n, mi.combined_extinction), self.mode);
+        self.uni
+            .update(Spectrum::splat(p_null), mi.sigma_n, channel);
     }
     #[inline]
-    fn surface(&mut self, t: Vec3, channel: usize) {
-        self.nee.update(Vec3::ONE, t, channel);
-        self.uni.update(Vec3::ONE, t, channel);
+    fn surface(&mut self, t: Spectrum, channel: usize) {
+        self.nee.update(Spectrum::ONE, t, channel);
+        self.uni.update(Spectrum::ONE, t, channel);
     }
     #[inline]
     fn is_zero(&self) -> bool {
@@ -168,13 +183,16 @@ impl VolPathMisIntegrator {
         &self,
         scene: &Scene,
         ray: Ray,
+        wl: Vec4,
         sampler: &mut SampleStream,
         stats: &mut PathStats,
     ) -> Spectrum {
-        if self.spectral_mis {
-            self.li_with::<SpectralMis>(scene, ray, sampler, stats)
-        } else {
-            self.li_with::<HeroMis>(scene, ray, sampler, stats)
+        match (self.spectral_mis, scene.mode) {
+            (true, Mode::Rgb) => self.li_with::<SpectralMis<3>>(scene, ray, wl, sampler, stats),
+            (true, Mode::Spectral) => {
+                self.li_with::<SpectralMis<4>>(scene, ray, wl, sampler, stats)
+            }
+            (false, _) => self.li_with::<HeroMis>(scene, ray, wl, sampler, stats),
         }
     }
 
@@ -187,6 +205,7 @@ impl VolPathMisIntegrator {
         medium: Option<u32>,
         p_over_f: W,
         channel: usize,
+        wl: Vec4,
         sampler: &mut SampleStream,
         stats: &mut PathStats,
     ) -> Option<(W, W, Spectrum, DirectionSample)> {
@@ -194,16 +213,20 @@ impl VolPathMisIntegrator {
             Vertex::Surface(si) => si.p,
             Vertex::Medium(p) => p,
         };
-        let ds = scene.sample_emitter_direction_at(p, sampler.next_2d(), NO_WAVELENGTHS)?;
+        let ds = scene.sample_emitter_direction_at(p, sampler.next_2d(), wl)?;
         if ds.pdf.is_nan() || ds.pdf <= 0.0 {
             return None;
         }
         let mut w = ShadowMis {
             nee: p_over_f,
             uni: p_over_f,
+            mode: scene.mode,
         };
-        w.nee.update(Vec3::splat(ds.pdf), Vec3::ONE, channel);
-        trace_shadow(scene, from, &ds, medium, channel, sampler, stats, &mut w);
+        w.nee
+            .update(Spectrum::splat(ds.pdf), Spectrum::ONE, channel);
+        trace_shadow(
+            scene, from, &ds, medium, channel, wl, sampler, stats, &mut w,
+        );
         Some((w.nee, w.uni, ds.radiance, ds))
     }
 
@@ -211,9 +234,11 @@ impl VolPathMisIntegrator {
         &self,
         scene: &Scene,
         ray: Ray,
+        wl: Vec4,
         sampler: &mut SampleStream,
         stats: &mut PathStats,
     ) -> Spectrum {
+        let mode = scene.mode;
         let mut ray = Ray::new(ray.o, ray.d.normalize(), ray.tmax);
         let mut result = Spectrum::ZERO;
         let mut eta = 1.0f32;
@@ -222,7 +247,7 @@ impl VolPathMisIntegrator {
         let mut specular_chain = !self.hide_emitters;
         let mut p_over_f = W::ones();
         let mut p_over_f_nee = W::ones();
-        let channel = pick_channel(sampler.next_1d());
+        let channel = pick_channel(sampler.next_1d(), mode);
         let mut hit: Option<Option<SurfaceInteraction>> = None;
         let mut last_scatter_p = ray.o;
         let mut last_event_was_null = false;
@@ -236,10 +261,10 @@ impl VolPathMisIntegrator {
                     stats.rr_terminated += 1;
                     break;
                 }
-                p_over_f.update(Vec3::splat(q), Vec3::ONE, channel);
+                p_over_f.update(Spectrum::splat(q), Spectrum::ONE, channel);
             }
             last_event_was_null = false;
-            if depth >= self.max_depth || p_over_f.weight() == Vec3::ZERO {
+            if depth >= self.max_depth || p_over_f.weight() == Spectrum::ZERO {
                 break;
             }
 
@@ -253,6 +278,7 @@ impl VolPathMisIntegrator {
                     f32::INFINITY,
                     &mut hit,
                     channel,
+                    wl,
                     sampler,
                     stats,
                 );
@@ -260,11 +286,11 @@ impl VolPathMisIntegrator {
                 p_over_f.update(pdf, tr, channel);
                 p_over_f_nee.update(pdf, tr, channel);
                 if mi.is_valid() {
-                    let null_prob = mean3(safe_div3(mi.sigma_n, mi.combined_extinction));
+                    let null_prob = mean(safe_div(mi.sigma_n, mi.combined_extinction), mode);
                     if sampler.next_1d() < null_prob {
                         last_event_was_null = true;
-                        p_over_f.update(Vec3::splat(null_prob), mi.sigma_n, channel);
-                        p_over_f_nee.update(Vec3::ONE, mi.sigma_n, channel);
+                        p_over_f.update(Spectrum::splat(null_prob), mi.sigma_n, channel);
+                        p_over_f_nee.update(Spectrum::ONE, mi.sigma_n, channel);
                         pass_collision(&mut ray, &mut hit, &mi);
                         continue;
                     }
@@ -275,7 +301,7 @@ impl VolPathMisIntegrator {
                     stats.bounces += 1;
                     last_scatter_p = mi.p;
                     specular_chain = !med.sample_emitters;
-                    p_over_f.update(Vec3::splat(1.0 - null_prob), mi.sigma_s, channel);
+                    p_over_f.update(Spectrum::splat(1.0 - null_prob), mi.sigma_s, channel);
                     if med.sample_emitters {
                         if let Some((mut nee_end, mut uni_end, emitted, ds)) = Self::sample_emitter(
                             scene,
@@ -283,24 +309,25 @@ impl VolPathMisIntegrator {
                             medium,
                             p_over_f,
                             channel,
+                            wl,
                             sampler,
                             stats,
                         ) {
                             let phase_val = med.phase.eval(mi.wi, ds.d);
-                            let pv = Vec3::splat(phase_val);
-                            nee_end.update(Vec3::ONE, pv, channel);
+                            let pv = Spectrum::splat(phase_val);
+                            nee_end.update(Spectrum::ONE, pv, channel);
                             let p = if ds.delta { 0.0 } else { phase_val };
-                            uni_end.update(Vec3::splat(p), pv, channel);
-                            result += from_rgb(nee_end.weight2(&uni_end)) * emitted;
+                            uni_end.update(Spectrum::splat(p), pv, channel);
+                            result += nee_end.weight2(&uni_end) * emitted;
                         }
                     }
                     p_over_f_nee = p_over_f;
                     let Some(ps) = med.phase.sample(mi.wi, sampler.next_2d()) else {
                         break;
                     };
-                    let f = Vec3::splat(ps.weight * ps.pdf);
-                    p_over_f.update(Vec3::splat(ps.pdf), f, channel);
-                    p_over_f_nee.update(Vec3::ONE, f, channel);
+                    let f = Spectrum::splat(ps.weight * ps.pdf);
+                    p_over_f.update(Spectrum::splat(ps.pdf), f, channel);
+                    p_over_f_nee.update(Spectrum::ONE, f, channel);
                     ray = Ray::new(mi.p, ps.wo, f32::INFINITY);
                     hit = None;
                     continue;
@@ -319,23 +346,23 @@ impl VolPathMisIntegrator {
                 si = super::pass_through_emitters(scene, ray.d, si, stats);
             }
             if !(depth == 0 && self.hide_emitters) {
-                let le = emission_at(scene, si.as_ref(), ray.d, NO_WAVELENGTHS);
+                let le = emission_at(scene, si.as_ref(), ray.d, wl);
                 if le != Spectrum::ZERO {
                     let count_direct = depth == 0 || specular_chain;
                     let w = if count_direct {
                         p_over_f.weight()
                     } else {
                         let pdf = emitter_pdf_at(scene, last_scatter_p, si.as_ref(), ray.d);
-                        p_over_f_nee.update(Vec3::splat(pdf), Vec3::ONE, channel);
+                        p_over_f_nee.update(Spectrum::splat(pdf), Spectrum::ONE, channel);
                         p_over_f.weight2(&p_over_f_nee)
                     };
-                    result += from_rgb(w) * le;
+                    result += w * le;
                 }
             }
             let Some(si) = si else {
                 break;
             };
-            let bsdf = scene.bsdf_at(&si, NO_WAVELENGTHS, &mut bsdf_buf);
+            let bsdf = scene.bsdf_at(&si, wl, &mut bsdf_buf);
             let wi = si.frame.to_local(-ray.d);
 
             // Next-event estimation.
@@ -346,17 +373,17 @@ impl VolPathMisIntegrator {
                     medium,
                     p_over_f,
                     channel,
+                    wl,
                     sampler,
                     stats,
                 ) {
                     let wo = si.frame.to_local(ds.d);
                     let f = bsdf.eval(wi, wo);
                     if f != Spectrum::ZERO {
-                        let f = to_rgb(f);
-                        nee_end.update(Vec3::ONE, f, channel);
+                        nee_end.update(Spectrum::ONE, f, channel);
                         let p = if ds.delta { 0.0 } else { bsdf.pdf(wi, wo) };
-                        uni_end.update(Vec3::splat(p), f, channel);
-                        result += from_rgb(nee_end.weight2(&uni_end)) * emitted;
+                        uni_end.update(Spectrum::splat(p), f, channel);
+                        result += nee_end.weight2(&uni_end) * emitted;
                     }
                 }
             }
@@ -374,7 +401,7 @@ impl VolPathMisIntegrator {
             let wo_world = si.frame.to_world(bs.wo).normalize();
             ray = Scene::spawn_ray(&si, wo_world);
             hit = None;
-            let f = to_rgb(bs.weight * bs.pdf);
+            let f = bs.weight * bs.pdf;
             if !bs.null {
                 depth += 1;
                 stats.bounces += 1;
@@ -387,9 +414,9 @@ impl VolPathMisIntegrator {
             if !bs.delta {
                 specular_chain = false;
             }
-            p_over_f.update(Vec3::splat(bs.pdf), f, channel);
+            p_over_f.update(Spectrum::splat(bs.pdf), f, channel);
             if !bs.null {
-                p_over_f_nee.update(Vec3::ONE, f, channel);
+                p_over_f_nee.update(Spectrum::ONE, f, channel);
             }
             if scene.is_medium_transition(&si) {
                 medium = scene.target_medium(&si, ray.d);

@@ -7,6 +7,12 @@
 //!
 //! Parameters as [`super::homogeneous`], with `sigma_t` and `albedo` usually `gridvolume`s.
 //!
+//! In spectral mode the majorant is Mitsuba's too: `scale` times the volume's `max()`, the
+//! largest cell scale of a three-channel grid ([`crate::volume::grid`]) and, for a constant
+//! `<rgb>` volume, the *mean* of its upsampled spectrum, which lies below the spectrum's peak:
+//! there σn is negative at some wavelengths and the null-collision probability mean(σn / m)
+//! can fall below zero for a path, as in Mitsuba 3.9.1 (whose references penumbra matches).
+//!
 //! ```xml
 //! <medium type="heterogeneous" id="smoke">
 //!     <volume name="sigma_t" type="gridvolume"> <string name="filename" value="smoke.vol"/> </volume>
@@ -15,8 +21,9 @@
 //! ```
 
 use crate::geometry::Ray;
+use crate::spectrum::Spectrum;
 use crate::volume::Volume;
-use glam::Vec3;
+use glam::{Vec3, Vec4};
 
 #[derive(Clone, Debug)]
 pub struct Heterogeneous {
@@ -41,12 +48,12 @@ impl Heterogeneous {
         }
     }
 
-    /// (σs, σn, σt) at `p`.
+    /// (σs, σn, σt) at `p` and `wavelengths`.
     #[inline]
-    pub fn coefficients(&self, p: Vec3) -> (Vec3, Vec3, Vec3) {
-        let sigma_t = self.sigma_t.eval(p) * self.scale;
-        let sigma_s = sigma_t * self.albedo.eval(p);
-        (sigma_s, Vec3::splat(self.majorant) - sigma_t, sigma_t)
+    pub fn coefficients(&self, p: Vec3, wavelengths: Vec4) -> (Spectrum, Spectrum, Spectrum) {
+        let sigma_t = self.sigma_t.eval(p, wavelengths) * self.scale;
+        let sigma_s = sigma_t * self.albedo.eval(p, wavelengths);
+        (sigma_s, Spectrum::splat(self.majorant) - sigma_t, sigma_t)
     }
 
     /// The slab test of the ray against the box of `sigma_t`: (hit, t_near, t_far), t_near

@@ -19,8 +19,9 @@
 //! </medium>
 //! ```
 
+use crate::spectrum::Spectrum;
 use crate::volume::Volume;
-use glam::Vec3;
+use glam::{Vec3, Vec4};
 
 #[derive(Clone, Debug)]
 pub struct Homogeneous {
@@ -31,14 +32,18 @@ pub struct Homogeneous {
 
 impl Homogeneous {
     #[inline]
-    pub fn sigma_t(&self, p: Vec3) -> Vec3 {
-        self.sigma_t.eval(p) * self.scale
+    pub fn sigma_t(&self, p: Vec3, wavelengths: Vec4) -> Spectrum {
+        self.sigma_t.eval(p, wavelengths) * self.scale
     }
 
-    /// (σs, σn, σt) at `p`.
+    /// (σs, σn, σt) at `p` and `wavelengths`.
     #[inline]
-    pub fn coefficients(&self, p: Vec3) -> (Vec3, Vec3, Vec3) {
-        let sigma_t = self.sigma_t(p);
-        (sigma_t * self.albedo.eval(p), Vec3::ZERO, sigma_t)
+    pub fn coefficients(&self, p: Vec3, wavelengths: Vec4) -> (Spectrum, Spectrum, Spectrum) {
+        let sigma_t = self.sigma_t(p, wavelengths);
+        (
+            sigma_t * self.albedo.eval(p, wavelengths),
+            Spectrum::ZERO,
+            sigma_t,
+        )
     }
 }

@@ -4,12 +4,15 @@
 //!
 //! - [`Medium::sample_interaction`] draws a tentative collision distance along a ray with
 //!   density m_c · exp(−m_c t), m the *majorant* (combined extinction) and c one RGB channel
-//!   chosen per path (Mitsuba's RGB mode); at the collision it reports σs, σt and the null
-//!   (fictitious) extinction σn = m − σt;
+//!   chosen per path in RGB mode, the path's first wavelength in spectral mode (Mitsuba's
+//!   `*_spectral` variants: the other three are weighed by their transmittance over its
+//!   free-flight density); at the collision it reports σs, σt and the null (fictitious)
+//!   extinction σn = m − σt, per [`Spectrum`] lane;
 //! - [`Medium::transmittance_eval_pdf`] gives the majorant transmittance over the sampled
 //!   segment and its free-flight density, from which the integrator weighs the sample.
 //!
-//! A collision is real with probability mean(σt / m) (the integrators' choice) and null
+//! A collision is real with probability mean(σt / m) over the mode's channels ([`mean`]: R, G,
+//! B in RGB mode, the four wavelengths in spectral mode; the integrators' choice) and null
 //! otherwise: delta tracking (Woodcock et al. 1965) for paths, ratio tracking (Novák et al.
 //! 2014, "Residual ratio tracking for estimating attenuation in participating media") for
 //! shadow rays. Homogeneous media use σt itself as the majorant, so every collision is real.
@@ -31,7 +34,8 @@ pub use homogeneous::Homogeneous;
 
 use crate::geometry::Ray;
 use crate::phase::PhaseFunction;
-use glam::Vec3;
+use crate::spectrum::{Mode, Spectrum};
+use glam::{Vec3, Vec4};
 
 #[derive(Clone, Debug)]
 pub enum MediumKind {
@@ -62,11 +66,11 @@ pub struct MediumInteraction {
     /// Where it ends: the box exit clipped to the ray's tmax (∞ in a homogeneous medium; 0
     /// when the ray misses the box). The majorant acts only on [mint, maxt].
     pub maxt: f32,
-    pub sigma_s: Vec3,
-    pub sigma_n: Vec3,
-    pub sigma_t: Vec3,
+    pub sigma_s: Spectrum,
+    pub sigma_n: Spectrum,
+    pub sigma_t: Spectrum,
     /// The majorant m used to sample `t`.
-    pub combined_extinction: Vec3,
+    pub combined_extinction: Spectrum,
 }
 
 impl MediumInteraction {
@@ -100,9 +104,15 @@ impl Medium {
     }
 
     /// Samples a tentative collision along `ray` (unit direction, up to `ray.tmax`) with the
-    /// majorant of RGB `channel`, using the uniform number `u` (Mitsuba's
-    /// `Medium::sample_interaction`).
-    pub fn sample_interaction(&self, ray: &Ray, u: f32, channel: usize) -> MediumInteraction {
+    /// majorant of `channel` (a [`Spectrum`] lane), using the uniform number `u`, with the
+    /// coefficients at the path's `wavelengths` (Mitsuba's `Medium::sample_interaction`).
+    pub fn sample_interaction(
+        &self,
+        ray: &Ray,
+        u: f32,
+        channel: usize,
+        wavelengths: Vec4,
+    ) -> MediumInteraction {
         let (hit, mint, maxt) = self.intersect_aabb(ray);
         let active = hit && (mint.is_finite() || maxt.is_finite());
         let (mint, maxt) = if active {
@@ -111,9 +121,9 @@ impl Medium {
             (0.0, f32::INFINITY)
         };
         let combined_extinction = match &self.kind {
-            MediumKind::Homogeneous(h) if active => h.sigma_t(ray.o),
-            MediumKind::Homogeneous(_) => Vec3::ZERO,
-            MediumKind::Heterogeneous(h) => Vec3::splat(h.majorant),
+            MediumKind::Homogeneous(h) if active => h.sigma_t(ray.o, wavelengths),
+            MediumKind::Homogeneous(_) => Spectrum::ZERO,
+            MediumKind::Heterogeneous(h) => Spectrum::splat(h.majorant),
         };
         let m = combined_extinction[channel];
         let sampled_t = mint + (-crate::math::lnf(1.0 - u) / m);
@@ -122,11 +132,11 @@ impl Medium {
         let p = ray.at(sampled_t);
         let (sigma_s, sigma_n, sigma_t) = if valid {
             match &self.kind {
-                MediumKind::Homogeneous(h) => h.coefficients(p),
-                MediumKind::Heterogeneous(h) => h.coefficients(p),
+                MediumKind::Homogeneous(h) => h.coefficients(p, wavelengths),
+                MediumKind::Heterogeneous(h) => h.coefficients(p, wavelengths),
             }
         } else {
-            (Vec3::ZERO, Vec3::ZERO, Vec3::ZERO)
+            (Spectrum::ZERO, Spectrum::ZERO, Spectrum::ZERO)
         };
         MediumInteraction {
             t: if valid { sampled_t } else { f32::INFINITY },
@@ -149,7 +159,7 @@ impl Medium {
     /// to the surface, but exp(−m t) does not underflow to 0/0 along a long ray past a
     /// small, dense grid (docs/media.md).
     #[inline]
-    pub fn transmittance_eval_pdf(mi: &MediumInteraction, si_t: f32) -> (Vec3, Vec3) {
+    pub fn transmittance_eval_pdf(mi: &MediumInteraction, si_t: f32) -> (Spectrum, Spectrum) {
         let t = mi.segment(si_t);
         let tr = transmittance(t, mi.combined_extinction);
         let pdf = if si_t < mi.t {
@@ -166,7 +176,7 @@ impl Medium {
 /// t · σ is ∞ · 0 = NaN). Any other NaN (a NaN extinction or length) stays NaN, so the
 /// sample is dropped and counted as non-finite, never turned into a transmittance.
 #[inline]
-pub fn transmittance(t: f32, sigma: Vec3) -> Vec3 {
+pub fn transmittance(t: f32, sigma: Spectrum) -> Spectrum {
     let e = |s: f32| {
         if s == 0.0 {
             1.0
@@ -174,20 +184,24 @@ pub fn transmittance(t: f32, sigma: Vec3) -> Vec3 {
             crate::math::expf(-t * s)
         }
     };
-    Vec3::new(e(sigma.x), e(sigma.y), e(sigma.z))
+    Spectrum::new(e(sigma.x), e(sigma.y), e(sigma.z), e(sigma.w))
 }
 
-/// The mean of the three channels.
+/// The mean over the channels of `mode`: R, G and B in RGB mode (lane 3, green's copy, left
+/// out), the four wavelengths in spectral mode (Mitsuba's `dr::mean` over its `Spectrum`).
 #[inline]
-pub fn mean3(v: Vec3) -> f32 {
-    (v.x + v.y + v.z) / 3.0
+pub fn mean(v: Spectrum, mode: Mode) -> f32 {
+    match mode {
+        Mode::Rgb => (v.x + v.y + v.z) / 3.0,
+        Mode::Spectral => (v.x + v.y + v.z + v.w) / 4.0,
+    }
 }
 
 /// Component-wise a / b with 0 where b is 0 (σn / m for a zero majorant).
 #[inline]
-pub fn safe_div3(a: Vec3, b: Vec3) -> Vec3 {
+pub fn safe_div(a: Spectrum, b: Spectrum) -> Spectrum {
     let d = |a: f32, b: f32| if b != 0.0 { a / b } else { 0.0 };
-    Vec3::new(d(a.x, b.x), d(a.y, b.y), d(a.z, b.z))
+    Spectrum::new(d(a.x, b.x), d(a.y, b.y), d(a.z, b.z), d(a.w, b.w))
 }
 
 #[cfg(test)]
@@ -199,11 +213,23 @@ mod tests {
     /// transmittance of 1.
     #[test]
     fn transmittance_never_turns_nan_into_one() {
-        let tr = transmittance(2.0, Vec3::new(0.5, 0.0, 1e30));
-        assert_eq!(tr, Vec3::new((-1.0f32).exp(), 1.0, 0.0));
-        assert_eq!(transmittance(f32::INFINITY, Vec3::ZERO), Vec3::ONE);
-        let nan = transmittance(1.0, Vec3::new(f32::NAN, 1.0, f32::NAN));
-        assert!(nan.x.is_nan() && nan.z.is_nan() && nan.y == (-1.0f32).exp());
-        assert!(transmittance(f32::NAN, Vec3::ONE).is_nan());
+        let tr = transmittance(2.0, Vec4::new(0.5, 0.0, 1e30, 0.25));
+        assert_eq!(tr, Vec4::new((-1.0f32).exp(), 1.0, 0.0, (-0.5f32).exp()));
+        assert_eq!(transmittance(f32::INFINITY, Vec4::ZERO), Vec4::ONE);
+        let nan = transmittance(1.0, Vec4::new(f32::NAN, 1.0, f32::NAN, 0.0));
+        assert!(nan.x.is_nan() && nan.z.is_nan() && nan.y == (-1.0f32).exp() && nan.w == 1.0);
+        assert!(transmittance(f32::NAN, Vec4::ONE).is_nan());
+    }
+
+    /// RGB mode averages R, G, B (never lane 3, green's copy); spectral mode all four.
+    #[test]
+    fn the_mean_runs_over_the_modes_channels() {
+        let v = Vec4::new(1.0, 2.0, 6.0, 7.0);
+        assert_eq!(mean(v, Mode::Rgb), 3.0);
+        assert_eq!(mean(v, Mode::Spectral), 4.0);
+        assert_eq!(
+            safe_div(v, Vec4::new(2.0, 0.0, 3.0, 7.0)),
+            Vec4::new(0.5, 0.0, 2.0, 1.0)
+        );
     }
 }

@@ -48,7 +48,7 @@ impl VolumeTexture {
     /// The colour at point `p` (camera-relative world space, as the scene is built).
     #[inline]
     pub fn eval(&self, p: Vec3) -> Vec3 {
-        self.volume.eval(p)
+        self.volume.eval_rgb(p)
     }
 
     /// One value at point `p`.
@@ -111,10 +111,7 @@ mod tests {
 
     #[test]
     fn constant_volumes_use_their_one_value_lookup() {
-        let v = Volume::Constant(crate::volume::constant::ConstVolume::new(
-            Vec3::new(0.1, 0.2, 0.3),
-            Mat4::IDENTITY,
-        ));
+        let v = Volume::constant(Vec3::new(0.1, 0.2, 0.3));
         let t = VolumeTexture::new(v, 0.2);
         assert_eq!(t.eval(Vec3::splat(7.0)), Vec3::new(0.1, 0.2, 0.3));
         assert_eq!(t.eval_1(Vec3::splat(-3.0)), 0.2);

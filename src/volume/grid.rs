@@ -8,12 +8,19 @@
 //! | `filter_type` | `trilinear` or `nearest` | `trilinear` |
 //! | `wrap_mode` | `clamp`, `repeat` or `mirror` | `clamp` |
 //! | `use_grid_bbox` | the file's box places the grid (after `to_world`) | false |
-//! | `raw` | accepted (RGB rendering never converts values) | false |
+//! | `raw` | keep three channels as numbers in spectral mode (then they cannot be looked up as a spectrum) | false |
 //! | `to_world` | transform of the unit cube | identity |
 //!
 //! A world point p is looked up at local coordinates `to_local · p` (to_local = to_world⁻¹,
 //! preceded by the map of the file's box to the unit cube with `use_grid_bbox`); outside
 //! [0, 1]³ the wrap mode decides. One-channel grids evaluate to grey RGB.
+//!
+//! In spectral mode a three-channel grid holds spectra, as Mitsuba 3.9.1's `gridvolume`
+//! converts it at load ([`GridVolume::to_spectral`]): each cell's colour `c` becomes the scale
+//! `s = 2 max(c)` and the sigmoid-polynomial coefficients of `c / max(s, 1e-8)` (a reflectance
+//! in [0, ½], so every cell's spectrum lies in [0, s]); the grid's largest value becomes the
+//! largest `s`. A trilinear lookup interpolates the eight cells' *spectra* and, separately,
+//! their scales, and multiplies the two; a nearest lookup is the cell's `s · S(λ)`.
 //!
 //! ```xml
 //! <volume type="gridvolume" name="sigma_t">
@@ -22,8 +29,9 @@
 //! ```
 
 use crate::io::vol::VolData;
+use crate::spectral::srgb_model_eval;
 use crate::texture::bitmap::Wrap;
-use glam::{Mat4, Vec3};
+use glam::{Mat4, Vec3, Vec4};
 
 #[derive(Clone, Debug)]
 pub struct GridVolume {
@@ -37,6 +45,8 @@ pub struct GridVolume {
     wrap: Wrap,
     /// Largest value of any channel.
     pub max: f32,
+    /// Spectral mode, three channels: per cell the sigmoid coefficients and the scale.
+    spectral: Option<Vec<[f32; 4]>>,
     /// World-space box of the grid.
     pub bbox: [Vec3; 2],
 }
@@ -86,7 +96,83 @@ impl GridVolume {
             trilinear,
             wrap,
             max,
+            spectral: None,
         })
+    }
+
+    /// Converts a three-channel grid's cells into spectra for spectral mode (see the module's
+    /// documentation) and sets [`GridVolume::max`] to the largest scale; a one-channel grid
+    /// is unchanged (its value is the same at every wavelength).
+    pub fn to_spectral(&mut self) {
+        if self.channels != 3 || self.spectral.is_some() {
+            return;
+        }
+        let mut max = 0.0f32;
+        let cells = self
+            .data
+            .chunks_exact(3)
+            .map(|c| {
+                let scale = c[0].max(c[1]).max(c[2]) * 2.0;
+                let norm = scale.max(1e-8);
+                let coeff =
+                    crate::spectral::srgb_model_fetch([c[0] / norm, c[1] / norm, c[2] / norm]);
+                max = max.max(scale);
+                [coeff[0], coeff[1], coeff[2], scale]
+            })
+            .collect();
+        self.spectral = Some(cells);
+        self.max = max;
+    }
+
+    /// Whether the cells hold spectra ([`GridVolume::to_spectral`]).
+    #[inline]
+    pub fn is_spectral(&self) -> bool {
+        self.spectral.is_some()
+    }
+
+    /// The spectrum at world-space point `p` and `wavelengths` of a grid converted by
+    /// [`GridVolume::to_spectral`] (zero for any other grid).
+    pub fn eval_spectral(&self, p: Vec3, wavelengths: Vec4) -> Vec4 {
+        let Some(cells) = &self.spectral else {
+            return Vec4::ZERO;
+        };
+        let q = self.to_local.transform_point3(p);
+        if !q.is_finite() {
+            return Vec4::ZERO;
+        }
+        let [nx, ny, nz] = self.res;
+        let cell = |x: usize, y: usize, z: usize| cells[(z * ny + y) * nx + x];
+        let spectrum = |c: [f32; 4]| srgb_model_eval([c[0], c[1], c[2]], wavelengths);
+        if !self.trilinear {
+            let x = self.wrap.apply((q.x * nx as f32).floor() as i64, nx);
+            let y = self.wrap.apply((q.y * ny as f32).floor() as i64, ny);
+            let z = self.wrap.apply((q.z * nz as f32).floor() as i64, nz);
+            let c = cell(x, y, z);
+            return spectrum(c) * c[3];
+        }
+        let pos = q * Vec3::new(nx as f32, ny as f32, nz as f32) - 0.5;
+        let f0 = pos.floor();
+        let w1 = pos - f0;
+        let w0 = Vec3::ONE - w1;
+        let i0 = [f0.x as i64, f0.y as i64, f0.z as i64];
+        let xs = [self.wrap.apply(i0[0], nx), self.wrap.apply(i0[0] + 1, nx)];
+        let ys = [self.wrap.apply(i0[1], ny), self.wrap.apply(i0[1] + 1, ny)];
+        let zs = [self.wrap.apply(i0[2], nz), self.wrap.apply(i0[2] + 1, nz)];
+        // Along x, then y, then z: the spectra and the scales separately.
+        let mut v = [[Vec4::ZERO; 2]; 2];
+        let mut s = [[0.0f32; 2]; 2];
+        for (k, z) in zs.iter().enumerate() {
+            for (j, y) in ys.iter().enumerate() {
+                let (a, b) = (cell(xs[0], *y, *z), cell(xs[1], *y, *z));
+                v[k][j] = spectrum(a) * w0.x + spectrum(b) * w1.x;
+                s[k][j] = a[3] * w0.x + b[3] * w1.x;
+            }
+        }
+        let v0 = v[0][0] * w0.y + v[0][1] * w1.y;
+        let v1 = v[1][0] * w0.y + v[1][1] * w1.y;
+        let s0 = s[0][0] * w0.y + s[0][1] * w1.y;
+        let s1 = s[1][0] * w0.y + s[1][1] * w1.y;
+        (v0 * w0.z + v1 * w1.z) * (s0 * w0.z + s1 * w1.z)
     }
 
     /// Values per cell: 1 or 3.
@@ -273,5 +359,57 @@ mod tests {
             data: vec![0.1, 0.2],
         };
         assert!(GridVolume::new(vol, Mat4::IDENTITY, false, true, Wrap::Clamp).is_err());
+    }
+
+    /// Spectral mode, as Mitsuba's `gridvolume`: a cell (r, g, b) holds s = 2 max(r, g, b) and
+    /// the spectrum of (r, g, b) / s; a grey cell is its value at every wavelength; a trilinear
+    /// lookup is (interpolated spectra) × (interpolated scales), not the interpolation of the
+    /// products; a nearest lookup the cell's s · S(λ); the majorant the largest s.
+    #[test]
+    fn spectral_cells_hold_scaled_spectra_interpolated_apart_from_their_scales() {
+        use crate::spectral::{srgb_model_eval, srgb_model_fetch};
+        let grid = |trilinear| {
+            let vol = VolData {
+                res: [2, 1, 1],
+                channels: 3,
+                bbox: [[0.0; 3], [1.0; 3]],
+                data: vec![0.3, 0.3, 0.3, 0.9, 0.2, 0.05],
+            };
+            let mut g =
+                GridVolume::new(vol, Mat4::IDENTITY, false, trilinear, Wrap::Clamp).unwrap();
+            g.to_spectral();
+            g
+        };
+        let (tri, nearest) = (grid(true), grid(false));
+        assert!(tri.is_spectral());
+        assert_eq!(tri.max, 1.8);
+        let wl = Vec4::new(400.0, 480.0, 560.0, 700.0);
+        // The grey cell: S = ½ at every wavelength, s = 0.6.
+        let grey = tri.eval_spectral(Vec3::new(0.25, 0.5, 0.5), wl);
+        assert!(
+            (grey - Vec4::splat(0.3)).abs().max_element() < 1e-6,
+            "{grey}"
+        );
+        let red = srgb_model_eval(srgb_model_fetch([0.5, 0.2 / 1.8, 0.05 / 1.8]), wl);
+        let got = nearest.eval_spectral(Vec3::new(0.8, 0.5, 0.5), wl);
+        assert!(
+            (got - red * 1.8).abs().max_element() < 1e-6,
+            "{got} vs {}",
+            red * 1.8
+        );
+        // Halfway between the cells' centres.
+        let mid = tri.eval_spectral(Vec3::new(0.5, 0.5, 0.5), wl);
+        let want = (Vec4::splat(0.5) + red) * 0.5 * ((0.6 + 1.8) * 0.5);
+        assert!((mid - want).abs().max_element() < 1e-6, "{mid} vs {want}");
+        let products = (Vec4::splat(0.3) + red * 1.8) * 0.5;
+        assert!(
+            (mid - products).abs().max_element() > 1e-3,
+            "the two forms differ here"
+        );
+        // A one-channel grid is left as it is.
+        let mut one = two_texels(Mat4::IDENTITY, false, true);
+        one.to_spectral();
+        assert!(!one.is_spectral());
+        assert_eq!(one.max, 3.0);
     }
 }

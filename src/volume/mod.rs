@@ -16,7 +16,9 @@ pub mod grid;
 
 pub use grid::GridVolume;
 
-use glam::{Mat4, Vec3};
+use crate::spectrum::{from_rgb, Spectrum};
+use crate::texture::ColorValue;
+use glam::{Mat4, Vec3, Vec4};
 
 #[derive(Clone, Debug)]
 pub enum Volume {
@@ -25,25 +27,37 @@ pub enum Volume {
 }
 
 impl Volume {
-    /// A constant volume with the identity `to_world` (a plain parameter value).
+    /// A constant RGB volume with the identity `to_world` (a plain parameter value).
     pub fn constant(value: Vec3) -> Self {
-        Volume::Constant(constant::ConstVolume::new(value, Mat4::IDENTITY))
+        Volume::Constant(constant::ConstVolume::new(
+            ColorValue::Rgb(from_rgb(value)),
+            Mat4::IDENTITY,
+        ))
     }
 
-    /// The value at world-space point `p` (one-channel grids are splatted to RGB).
+    /// The value at world-space point `p` and the path's `wavelengths` (ignored in RGB mode):
+    /// one-channel grids are the same in every lane, three-channel grids hold RGB in RGB
+    /// mode and spectra in spectral mode ([`GridVolume::to_spectral`]).
     #[inline]
-    pub fn eval(&self, p: Vec3) -> Vec3 {
+    pub fn eval(&self, p: Vec3, wavelengths: Vec4) -> Spectrum {
         match self {
-            Volume::Constant(c) => c.value,
-            Volume::Grid(g) => g.eval(p),
+            Volume::Constant(c) => c.value.eval(wavelengths),
+            Volume::Grid(g) if g.is_spectral() => g.eval_spectral(p, wavelengths),
+            Volume::Grid(g) => from_rgb(g.eval(p)),
         }
+    }
+
+    /// The RGB value at `p` of a volume built for RGB mode (volume textures).
+    #[inline]
+    pub fn eval_rgb(&self, p: Vec3) -> Vec3 {
+        crate::spectrum::to_rgb(self.eval(p, crate::spectrum::NO_WAVELENGTHS))
     }
 
     /// The largest value of any channel anywhere (Mitsuba's `Volume::max`), the majorant of a
     /// heterogeneous medium.
     pub fn max(&self) -> f32 {
         match self {
-            Volume::Constant(c) => c.value.max_element(),
+            Volume::Constant(c) => c.max,
             Volume::Grid(g) => g.max,
         }
     }

@@ -250,7 +250,10 @@ impl MaterialBuilder {
                         as f32,
                     VolumeDesc::Grid { .. } => 0.0,
                 };
-                Texture::Volume(VolumeTexture::new(super::volume(v, self.shift)?, scalar))
+                Texture::Volume(VolumeTexture::new(
+                    super::volume(v, self.shift, Mode::Rgb)?,
+                    scalar,
+                ))
             }
         })
     }

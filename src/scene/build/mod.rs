@@ -28,6 +28,7 @@ use crate::phase::{HenyeyGreenstein, PhaseFunction};
 use crate::sampler::Sampler;
 use crate::sampling::Distribution1D;
 use crate::shape::{Cylinder, Disk, Mesh, SdfGrid, Shape, ShapeGeometry, Sphere};
+use crate::spectrum::Mode;
 use crate::texture::bitmap::Wrap;
 use crate::texture::ColorValue;
 use crate::volume::{constant::ConstVolume, GridVolume, Volume};
@@ -217,16 +218,10 @@ pub fn build(desc: &SceneDescription) -> Result<Scene> {
             )));
         }
     }
-    if desc.mode == crate::spectrum::Mode::Spectral && !desc.media.is_empty() {
-        return Err(Error::Invalid(
-            "spectral mode does not support participating media yet (issue 43); render in RGB mode"
-                .into(),
-        ));
-    }
     let media = desc
         .media
         .iter()
-        .map(|m| medium(m, shift).map_err(|e| Error::within(&m.location, e)))
+        .map(|m| medium(m, shift, desc.mode).map_err(|e| Error::within(&m.location, e)))
         .collect::<Result<Vec<_>>>()?;
     let (sampler, rounded) = Sampler::new(s.sampler.kind, s.sampler.sample_count);
     warnings.extend(rounded);
@@ -288,10 +283,10 @@ pub fn build(desc: &SceneDescription) -> Result<Scene> {
 }
 
 /// A medium of the scene; `shift` maps world space to the camera-relative space the scene is
-/// built in (volumes are placed by their `to_world`).
-fn medium(m: &MediumDesc, shift: DMat4) -> Result<Medium> {
-    let sigma_t = volume(&m.sigma_t, shift)?;
-    let albedo = volume(&m.albedo, shift)?;
+/// built in (volumes are placed by their `to_world`); `mode` decides what the volumes hold.
+fn medium(m: &MediumDesc, shift: DMat4, mode: Mode) -> Result<Medium> {
+    let sigma_t = volume(&m.sigma_t, shift, mode)?;
+    let albedo = volume(&m.albedo, shift, mode)?;
     let scale = m.scale as f32;
     let kind = if m.homogeneous {
         MediumKind::Homogeneous(Homogeneous {
@@ -314,10 +309,13 @@ fn medium(m: &MediumDesc, shift: DMat4) -> Result<Medium> {
     })
 }
 
-pub(super) fn volume(v: &VolumeDesc, shift: DMat4) -> Result<Volume> {
+/// A volume as `mode` renders it: in spectral mode constants hold their spectra and
+/// three-channel grids are converted to spectra ([`GridVolume::to_spectral`]), unless `raw`,
+/// which spectral mode refuses as Mitsuba does.
+pub(super) fn volume(v: &VolumeDesc, shift: DMat4, mode: Mode) -> Result<Volume> {
     Ok(match v {
         VolumeDesc::Constant { value, to_world } => Volume::Constant(ConstVolume::new(
-            value.rgb.as_vec3(),
+            ColorValue::new(value, mode),
             (shift * *to_world).as_mat4(),
         )),
         VolumeDesc::Grid {
@@ -327,6 +325,7 @@ pub(super) fn volume(v: &VolumeDesc, shift: DMat4) -> Result<Volume> {
             trilinear,
             wrap,
             max_value,
+            raw,
         } => {
             let bad = |message: String| Error::Mesh {
                 path: filename.clone(),
@@ -343,6 +342,14 @@ pub(super) fn volume(v: &VolumeDesc, shift: DMat4) -> Result<Volume> {
             )
             .map_err(bad)?;
             let mut grid = Box::new(grid);
+            if mode == Mode::Spectral && grid.channels() == 3 {
+                if *raw {
+                    return Err(bad(
+                        "a three-channel gridvolume with raw=\"true\" cannot be looked up as a spectrum in spectral mode (Mitsuba refuses it too); drop raw=\"true\"".into(),
+                    ));
+                }
+                grid.to_spectral();
+            }
             if let Some(m) = max_value {
                 grid.max = *m as f32;
             }

@@ -24,6 +24,9 @@ pub enum VolumeDesc {
         /// majorant of a heterogeneous medium), as in Mitsuba; a value below the grid's
         /// largest biases the medium, in Mitsuba too.
         max_value: Option<f64>,
+        /// `raw`: three channels kept as numbers in spectral mode (which then refuses to
+        /// look them up as spectra, as Mitsuba does).
+        raw: bool,
     },
 }
 
@@ -204,8 +207,8 @@ pub(super) fn volume_desc(cx: &Ctx, o: &Object) -> Result<VolumeDesc> {
                     ))
                 }
             };
-            // RGB rendering never converts grid values; `raw` and `accel` change nothing.
-            p.boolean("raw", false)?;
+            // RGB rendering never converts grid values; `accel` changes nothing.
+            let raw = p.boolean("raw", false)?;
             p.boolean("accel", true)?;
             let max_value = match p.take("max_value") {
                 None => None,
@@ -232,6 +235,7 @@ pub(super) fn volume_desc(cx: &Ctx, o: &Object) -> Result<VolumeDesc> {
                 trilinear,
                 wrap,
                 max_value,
+                raw,
             }
         }
         _ => return Err(unsupported_plugin(o)),
