@@ -17,6 +17,7 @@ use penumbra::shape::Mesh;
 use penumbra::spectral::{srgb_model_eval, srgb_model_fetch};
 use penumbra::texture::bitmap::{BitmapTexture, Filter, Format, TexImage, Wrap};
 use penumbra::texture::{MeshAttributeTexture, TextureContext};
+use penumbra::volume::GridVolume;
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
 
@@ -226,6 +227,85 @@ fn envmap_texels_match_mitsuba() {
     eprintln!("envmap texels: upsampling tables differ by up to {table_difference:e}");
 }
 
+/// `grid FILTER WRAP x y z l0..l3 s0..s3` lines: (trilinear, wrap, point, wavelengths, value).
+fn grid_lookups() -> Vec<(bool, Wrap, Vec3, Vec4, Vec4)> {
+    lines()
+        .iter()
+        .filter(|f| f[0] == "grid")
+        .map(|f| {
+            let v = nums(&f[3..]);
+            (
+                f[1] == "trilinear",
+                Wrap::from_name(&f[2]).unwrap(),
+                Vec3::new(v[0], v[1], v[2]),
+                Vec4::from_slice(&v[3..7]),
+                Vec4::from_slice(&v[7..11]),
+            )
+        })
+        .collect()
+}
+
+fn grid(trilinear: bool, wrap: Wrap) -> GridVolume {
+    let vol = penumbra::io::vol::read_vol(&data("grid_rgb.vol")).unwrap();
+    GridVolume::new(vol, glam::Mat4::IDENTITY, false, trilinear, wrap).unwrap()
+}
+
+/// A three-channel `gridvolume` in spectral mode with Mitsuba's coefficients: every lookup
+/// (trilinear and nearest, the three wrap modes, points inside and outside the unit cube) is
+/// Mitsuba's to 2e-6 relative to the value plus 1e-6 relative to the grid's largest scale
+/// (f32 rounding: the spectra and scales are interpolated in another order), and the cells'
+/// scales s = 2 max(rgb) and the majorant (the largest s) are Mitsuba's exactly.
+#[test]
+fn gridvolume_structure_matches_mitsuba() {
+    let cells = coefficients("grid");
+    assert_eq!(cells.len(), 12);
+    let lookups = grid_lookups();
+    assert!(lookups.len() >= 500, "{}", lookups.len());
+    let peak = cells.iter().map(|(_, c)| c[3]).fold(0.0, f32::max);
+    let mut worst = 0.0f32;
+    for (trilinear, wrap, p, wl, want) in lookups {
+        let mut g = grid(trilinear, wrap);
+        let mut next = cells.iter();
+        g.to_spectral_with(|rgb| {
+            let (stored, c) = next.next().unwrap();
+            let s = c[3].max(1e-8);
+            assert_eq!(rgb, stored.map(|x| x / s), "cells in Mitsuba's order");
+            [c[0], c[1], c[2]]
+        });
+        assert_eq!(g.max, peak);
+        let got = g.eval_spectral(p, wl);
+        let tol = 2e-6 * want.abs().max_element() + 1e-6 * peak;
+        let d = (got - want).abs().max_element();
+        worst = worst.max(d / tol);
+        assert!(d <= tol, "{p} {wl}: {got} vs Mitsuba {want}");
+    }
+    eprintln!("gridvolume structure: worst difference {worst} of the tolerance");
+}
+
+/// The grid converted with penumbra's own upsampling: the scales are Mitsuba's exactly, the
+/// coefficients those of penumbra's table for rgb / s (the tables' difference is reported).
+#[test]
+fn gridvolume_cells_match_mitsuba() {
+    let cells = coefficients("grid");
+    let mut g = grid(true, Wrap::Clamp);
+    let mut seen = Vec::new();
+    g.to_spectral_with(|rgb| {
+        seen.push(rgb);
+        srgb_model_fetch(rgb)
+    });
+    assert_eq!(g.max, cells.iter().map(|(_, c)| c[3]).fold(0.0, f32::max));
+    let mut table_difference = 0.0f32;
+    for ((stored, c), rgb) in cells.iter().zip(&seen) {
+        let s = c[3].max(1e-8);
+        assert_eq!(*rgb, stored.map(|x| x / s), "{stored:?}");
+        let wl = Vec4::new(412.5, 487.25, 601.0, 700.75);
+        let a = srgb_model_eval(srgb_model_fetch(*rgb), wl);
+        let b = srgb_model_eval([c[0], c[1], c[2]], wl);
+        table_difference = table_difference.max((a - b).abs().max_element());
+    }
+    eprintln!("gridvolume cells: upsampling tables differ by up to {table_difference:e}");
+}
+
 /// `attr` / `attr_stored` lines: the attribute as given and as Mitsuba stores it.
 fn mesh_attributes() -> Vec<(String, Vec<f32>, Vec<f32>)> {
     let l = lines();
@@ -355,6 +435,11 @@ fn spectral_refusals_are_mitsubas() {
         )
     };
     let sphere = |bsdf: String| format!(r#"<shape type="sphere">{bsdf}</shape>"#);
+    let volume_texture = |name: &str, extra: &str| {
+        format!(
+            r#"<texture type="volume" name="{name}"><volume type="gridvolume" name="volume"><string name="filename" value="spectral/grid_rgb.vol"/>{extra}</volume></texture>"#
+        )
+    };
     let ok = [
         sphere(format!(r#"<bsdf type="diffuse">{}</bsdf>"#, bitmap("reflectance", rgb, ""))),
         sphere(format!(
@@ -366,10 +451,19 @@ fn spectral_refusals_are_mitsubas() {
             bitmap("alpha", rgb, r#"<boolean name="raw" value="true"/>"#)
         )),
         r#"<emitter type="envmap"><string name="filename" value="spectral/env_rgb.exr"/></emitter>"#.into(),
-        // Media: a three-channel grid becomes spectra; raw one-channel data is fine.
+        // A volume texture: a three-channel grid as a colour; raw three channels as one value.
+        sphere(format!(
+            r#"<bsdf type="diffuse">{}</bsdf>"#,
+            volume_texture("reflectance", "")
+        )),
+        sphere(format!(
+            r#"<bsdf type="roughconductor">{}</bsdf>"#,
+            volume_texture("alpha", r#"<boolean name="raw" value="true"/>"#)
+        )),
+        // Media: a three-channel grid becomes spectra.
         format!(
             r#"<medium type="heterogeneous" id="m">{}</medium>{}"#,
-            r#"<volume type="gridvolume" name="albedo"><string name="filename" value="spectral/rgb2.vol"/></volume>"#,
+            r#"<volume type="gridvolume" name="albedo"><string name="filename" value="spectral/grid_rgb.vol"/></volume>"#,
             sphere(r#"<bsdf type="null"/><ref name="interior" id="m"/>"#.into())
         ),
         format!(
@@ -414,9 +508,23 @@ fn spectral_refusals_are_mitsubas() {
             "format=\"uint8\" is not supported in spectral mode",
         ),
         (
+            sphere(format!(
+                r#"<bsdf type="roughconductor">{}</bsdf>"#,
+                volume_texture("alpha", "")
+            )),
+            "converts a three-channel gridvolume into spectra",
+        ),
+        (
+            sphere(format!(
+                r#"<bsdf type="diffuse">{}</bsdf>"#,
+                volume_texture("reflectance", r#"<boolean name="raw" value="true"/>"#)
+            )),
+            "volume texture's gridvolume has raw=\"true\"",
+        ),
+        (
             format!(
                 r#"<medium type="heterogeneous" id="m">{}</medium>{}"#,
-                r#"<volume type="gridvolume" name="sigma_t"><string name="filename" value="spectral/rgb2.vol"/><boolean name="raw" value="true"/></volume>"#,
+                r#"<volume type="gridvolume" name="sigma_t"><string name="filename" value="spectral/grid_rgb.vol"/><boolean name="raw" value="true"/></volume>"#,
                 sphere(r#"<bsdf type="null"/><ref name="interior" id="m"/>"#.into())
             ),
             "raw=\"true\" cannot be looked up as a spectrum",

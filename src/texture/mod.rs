@@ -126,7 +126,7 @@ impl Texture {
             Texture::Bitmap(b) => b.eval_spectrum(ctx.uv, ctx.wavelengths),
             Texture::Checkerboard(c) => c.eval(ctx),
             Texture::MeshAttribute(a) => a.eval_spectrum(ctx),
-            Texture::Volume(v) => from_rgb(v.eval(ctx.p)),
+            Texture::Volume(v) => v.eval_spectrum(ctx.p, ctx.wavelengths),
         }
     }
 
@@ -204,6 +204,7 @@ impl Texture {
                 .color0
                 .spectral_refusal(lookup)
                 .or_else(|| c.color1.spectral_refusal(lookup)),
+            Texture::Volume(v) => v.spectral_refusal(lookup),
             _ => None,
         }
     }

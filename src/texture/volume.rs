@@ -51,6 +51,29 @@ impl VolumeTexture {
         self.volume.eval_rgb(p)
     }
 
+    /// The colour at point `p` and `wavelengths` (a spectrum in spectral mode).
+    #[inline]
+    pub fn eval_spectrum(&self, p: Vec3, wavelengths: glam::Vec4) -> crate::spectrum::Spectrum {
+        self.volume.eval(p, wavelengths)
+    }
+
+    /// Why spectral mode cannot look the texture up as `lookup` (Mitsuba's `gridvolume`
+    /// refuses the same): a three-channel grid converted to spectra looked up as one value
+    /// or three raw values, or a `raw` one looked up as a spectrum.
+    pub fn spectral_refusal(&self, lookup: super::Lookup) -> Option<String> {
+        use super::Lookup;
+        match (&*self.volume, lookup) {
+            (Volume::Grid(g), Lookup::One | Lookup::Three) if g.is_spectral() => Some(format!(
+                "a volume texture is looked up as {} here, but spectral mode converts a three-channel gridvolume into spectra (Mitsuba refuses this lookup too): use a one-channel grid, or raw=\"true\"",
+                if lookup == Lookup::One { "one value" } else { "raw RGB (a normal map)" }
+            )),
+            (Volume::Grid(g), Lookup::Spectrum) if g.channels() == 3 && !g.is_spectral() => Some(
+                "a volume texture's gridvolume has raw=\"true\" and three channels: spectral mode cannot look it up as a spectrum (Mitsuba refuses it too); drop raw=\"true\"".into(),
+            ),
+            _ => None,
+        }
+    }
+
     /// One value at point `p`.
     #[inline]
     pub fn eval_1(&self, p: Vec3) -> f32 {

@@ -29,7 +29,7 @@
 //! ```
 
 use crate::io::vol::VolData;
-use crate::spectral::srgb_model_eval;
+use crate::spectral::{srgb_model_eval, Coefficients};
 use crate::texture::bitmap::Wrap;
 use glam::{Mat4, Vec3, Vec4};
 
@@ -104,6 +104,12 @@ impl GridVolume {
     /// documentation) and sets [`GridVolume::max`] to the largest scale; a one-channel grid
     /// is unchanged (its value is the same at every wavelength).
     pub fn to_spectral(&mut self) {
+        self.to_spectral_with(crate::spectral::srgb_model_fetch);
+    }
+
+    /// [`GridVolume::to_spectral`] with the upsampling `fetch` given (called once per cell,
+    /// in the cells' order: tests hand Mitsuba's own coefficients in).
+    pub fn to_spectral_with(&mut self, mut fetch: impl FnMut([f32; 3]) -> Coefficients) {
         if self.channels != 3 || self.spectral.is_some() {
             return;
         }
@@ -114,8 +120,7 @@ impl GridVolume {
             .map(|c| {
                 let scale = c[0].max(c[1]).max(c[2]) * 2.0;
                 let norm = scale.max(1e-8);
-                let coeff =
-                    crate::spectral::srgb_model_fetch([c[0] / norm, c[1] / norm, c[2] / norm]);
+                let coeff = fetch([c[0] / norm, c[1] / norm, c[2] / norm]);
                 max = max.max(scale);
                 [coeff[0], coeff[1], coeff[2], scale]
             })

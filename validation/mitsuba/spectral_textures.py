@@ -24,7 +24,11 @@ then, in the scalar_spectral variant:
   `attr NAME values...` the attribute as given, `attr_stored NAME values...` Mitsuba's
   attribute_buffer after loading, and `mesh_eval NAME prim b1 b2 l0..l3 s0..s3`
   mesh.eval_attribute(NAME, si) at barycentrics (1 - b1 - b2, b1, b2) of triangle prim
-  (si.p placed there; on triangle 0 Mitsuba's least-squares barycentrics are exactly b1, b2).
+  (si.p placed there; on triangle 0 Mitsuba's least-squares barycentrics are exactly b1, b2);
+- grid_rgb.vol, a 3x2x2 three-channel `gridvolume` (x fastest): `coeff grid i r g b c0 c1 c2 s`
+  as for the envmap (Mitsuba's gridvolume stores rgb / max(1e-8, s), s = 2 max(rgb)), and
+  `grid FILTER WRAP x y z l0..l3 s0..s3`: volume.eval(it) at point (x, y, z) (the grid spans
+  the unit cube) and wavelengths l.
 
 Floats are printed with 9 significant digits (f32 round-trips exactly).
 
@@ -59,6 +63,29 @@ ENV = np.array(
     ],
     dtype=np.float32,
 )
+
+# 3 x 2 x 2 cells (x fastest), three channels: saturated, pale, grey, dark and one HDR cell.
+GRID = np.array(
+    [
+        [0.8, 0.1, 0.05], [0.5, 0.5, 0.5], [2.0, 1.5, 0.3],
+        [0.1, 0.6, 0.2], [0.05, 0.1, 0.7], [0.3, 0.25, 0.2],
+        [0.0, 0.0, 0.0], [0.9, 0.9, 0.2], [0.02, 0.01, 0.015],
+        [4.0, 1.0, 2.0], [0.6, 0.3, 0.9], [0.25, 0.7, 0.7],
+    ],
+    dtype=np.float32,
+)
+
+
+def write_vol(path, cells):
+    """Mitsuba's .vol format: 'VOL', version 3, float32 encoding, 3x2x2 cells, 3 channels,
+    the unit cube as the box, then the data (x fastest)."""
+    import struct
+
+    with open(path, "wb") as fh:
+        fh.write(b"VOL" + bytes([3]) + struct.pack("<i", 1) + struct.pack("<4i", 3, 2, 2, 3))
+        fh.write(struct.pack("<6f", 0, 0, 0, 1, 1, 1))
+        fh.write(cells.astype("<f4").tobytes())
+
 
 WAVELENGTHS = [
     [360.0, 450.0, 550.0, 830.0],
@@ -170,6 +197,39 @@ def main():
                     lines.append(
                         " ".join(
                             ["mesh_eval", name, str(prim), f(b1), f(b2)]
+                            + [f(x) for x in wl]
+                            + [f(val[k]) for k in range(4)]
+                        )
+                    )
+
+    grid_file = os.path.join(DATA, "grid_rgb.vol")
+    write_vol(grid_file, GRID)
+    for i, rgb in enumerate(GRID.reshape(-1, 3)):
+        s = float(np.float32(max(rgb)) * np.float32(2.0))
+        d = np.float32(max(1e-8, s))
+        norm = [float(np.float32(x) / d) for x in rgb]
+        c = mi.srgb_model_fetch(mi.Color3f(*norm))
+        lines.append(
+            " ".join(["coeff", "grid", str(i)] + [f(x) for x in rgb] + [f(x) for x in c] + [f(s)])
+        )
+    points = [tuple(x) for x in rng.uniform(-0.2, 1.2, size=(25, 3))]
+    points += [(0.5, 0.5, 0.5), (1 / 6, 0.25, 0.75), (0.0, 0.0, 0.0), (1.0, 1.0, 1.0)]
+    for filt in ("trilinear", "nearest"):
+        for wrap in ("clamp", "repeat", "mirror"):
+            vol = mi.load_dict(
+                {"type": "gridvolume", "filename": grid_file, "filter_type": filt, "wrap_mode": wrap}
+            )
+            for pt in points:
+                pt = [float(np.float32(x)) for x in pt]
+                for wl in WAVELENGTHS:
+                    it = mi.Interaction3f()
+                    it.p = mi.Point3f(pt)
+                    it.wavelengths = mi.Spectrum(wl)
+                    val = vol.eval(it)
+                    lines.append(
+                        " ".join(
+                            ["grid", filt, wrap]
+                            + [f(x) for x in pt]
                             + [f(x) for x in wl]
                             + [f(val[k]) for k in range(4)]
                         )

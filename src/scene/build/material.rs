@@ -199,12 +199,6 @@ impl MaterialBuilder {
                     },
                 }
             }
-            TextureDesc::Volume(_) if self.mode == Mode::Spectral => {
-                return Err(Error::Invalid(
-                    "spectral mode does not support volume textures yet (issue 43); render in RGB mode"
-                        .into(),
-                ));
-            }
             TextureDesc::Raw(v) => Texture::Constant {
                 rgb: v.as_vec3(),
                 scalar: v.x as f32,
@@ -244,14 +238,23 @@ impl MaterialBuilder {
             }
             TextureDesc::Volume(v) => {
                 let scalar = match v {
-                    VolumeDesc::Constant { value, .. } => TextureDesc::color(value.clone())
-                        .constant_scalar()
-                        .unwrap_or(0.0)
-                        as f32,
+                    // Mitsuba's `constvolume::eval_1`: the value's `mean()` (in spectral
+                    // mode the spectrum's, as for a constant texture).
+                    VolumeDesc::Constant { value, .. } => {
+                        let rgb = TextureDesc::color(value.clone())
+                            .constant_scalar()
+                            .unwrap_or(0.0) as f32;
+                        match self.mode {
+                            Mode::Rgb => rgb,
+                            Mode::Spectral => ColorValue::spectral(&value.spectral)
+                                .spectral_mean()
+                                .unwrap_or(rgb),
+                        }
+                    }
                     VolumeDesc::Grid { .. } => 0.0,
                 };
                 Texture::Volume(VolumeTexture::new(
-                    super::volume(v, self.shift, Mode::Rgb)?,
+                    super::volume(v, self.shift, self.mode)?,
                     scalar,
                 ))
             }

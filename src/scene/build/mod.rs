@@ -287,6 +287,12 @@ pub fn build(desc: &SceneDescription) -> Result<Scene> {
 fn medium(m: &MediumDesc, shift: DMat4, mode: Mode) -> Result<Medium> {
     let sigma_t = volume(&m.sigma_t, shift, mode)?;
     let albedo = volume(&m.albedo, shift, mode)?;
+    if mode == Mode::Spectral {
+        // A medium looks its volumes up as spectra.
+        if let Some(e) = raw_grid_refusal(&sigma_t).or_else(|| raw_grid_refusal(&albedo)) {
+            return Err(Error::Invalid(e));
+        }
+    }
     let scale = m.scale as f32;
     let kind = if m.homogeneous {
         MediumKind::Homogeneous(Homogeneous {
@@ -310,8 +316,8 @@ fn medium(m: &MediumDesc, shift: DMat4, mode: Mode) -> Result<Medium> {
 }
 
 /// A volume as `mode` renders it: in spectral mode constants hold their spectra and
-/// three-channel grids are converted to spectra ([`GridVolume::to_spectral`]), unless `raw`,
-/// which spectral mode refuses as Mitsuba does.
+/// three-channel grids are converted to spectra ([`GridVolume::to_spectral`]) unless `raw`
+/// (then they can only be looked up as numbers: see [`raw_grid_refusal`]).
 pub(super) fn volume(v: &VolumeDesc, shift: DMat4, mode: Mode) -> Result<Volume> {
     Ok(match v {
         VolumeDesc::Constant { value, to_world } => Volume::Constant(ConstVolume::new(
@@ -342,12 +348,7 @@ pub(super) fn volume(v: &VolumeDesc, shift: DMat4, mode: Mode) -> Result<Volume>
             )
             .map_err(bad)?;
             let mut grid = Box::new(grid);
-            if mode == Mode::Spectral && grid.channels() == 3 {
-                if *raw {
-                    return Err(bad(
-                        "a three-channel gridvolume with raw=\"true\" cannot be looked up as a spectrum in spectral mode (Mitsuba refuses it too); drop raw=\"true\"".into(),
-                    ));
-                }
+            if mode == Mode::Spectral && !*raw {
                 grid.to_spectral();
             }
             if let Some(m) = max_value {
@@ -356,6 +357,17 @@ pub(super) fn volume(v: &VolumeDesc, shift: DMat4, mode: Mode) -> Result<Volume>
             Volume::Grid(grid)
         }
     })
+}
+
+/// Why a volume of spectral mode cannot be looked up as a spectrum: a three-channel grid
+/// with `raw="true"` (Mitsuba's `gridvolume` refuses it too).
+pub(super) fn raw_grid_refusal(v: &Volume) -> Option<String> {
+    match v {
+        Volume::Grid(g) if g.channels() == 3 && !g.is_spectral() => Some(
+            "a three-channel gridvolume with raw=\"true\" cannot be looked up as a spectrum in spectral mode (Mitsuba refuses it too); drop raw=\"true\"".into(),
+        ),
+        _ => None,
+    }
 }
 
 /// An environment map's texels as linear RGB, from any image format Mitsuba's `envmap` reads
