@@ -41,7 +41,7 @@ impl Job {
         let integrator = Integrator::build(&desc.integrator, &scene)?;
         if scene.mode == Mode::Spectral && !integrator.supports_spectral() {
             return Err(Error::Invalid(format!(
-                "spectral mode renders with the path and direct integrators so far (issue 43); {} renders in RGB mode only",
+                "spectral mode renders with the path, direct, volpath, volpathmis and ptracer integrators; {} renders in RGB mode only (docs/spectral.md says why)",
                 integrator.name()
             )));
         }

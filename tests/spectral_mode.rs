@@ -272,3 +272,31 @@ fn white_furnace_per_wavelength_inside_an_emitting_sphere() {
         expected_rgb(|_| c),
     );
 }
+
+/// The integrators spectral mode renders build; the others are refused with one line naming
+/// the integrator (docs/spectral.md says why each is RGB only).
+#[test]
+fn integrators_spectral_mode_renders_and_refuses() {
+    let build = |integrator: &str| {
+        let xml = furnace_xml(0.8).replace(
+            r#"<integrator type="path"><integer name="max_depth" value="2"/></integrator>"#,
+            &format!(r#"<integrator type="{integrator}"/>"#),
+        );
+        let mut desc =
+            Scene::description_from_xml_str(&xml, &repo_path("tests/inline.xml"), &[]).unwrap();
+        desc.mode = Mode::Spectral;
+        Job::build(&desc).map(|_| ()).map_err(|e| e.to_string())
+    };
+    for ok in ["path", "direct", "volpath", "volpathmis", "ptracer"] {
+        build(ok).unwrap_or_else(|e| panic!("{ok}: {e}"));
+    }
+    for refused in ["bdpt", "sppm", "whitted"] {
+        match build(refused) {
+            Err(e) => assert!(
+                e.contains(&format!("{refused} renders in RGB mode only")) && !e.contains('\n'),
+                "{refused}: {e}"
+            ),
+            Ok(()) => panic!("{refused} builds in spectral mode"),
+        }
+    }
+}

@@ -23,6 +23,8 @@ render --engine`), one row per scene and engine, against the same Mitsuba render
 
 A spectral entry (`mode = "spectral"`) renders with `--mode spectral` and is compared with
 Mitsuba's spectral variants (`--variants llvm_ad_spectral,scalar_spectral`).
+`--scenes validation/perf/spectral-media.toml` measures two of Mitsuba's media scenes that
+way, against the suite's spectral references.
 """
 
 import argparse
@@ -138,6 +140,9 @@ def main():
     ap.add_argument("--spp", type=int, default=64)
     ap.add_argument("--repeat", type=int, default=3)
     ap.add_argument("--scene", action="append", help="only these scenes (repeatable)")
+    ap.add_argument("--scenes", type=Path, default=ROOT / "validation" / "scenes.toml",
+                    help="the scene list (default validation/scenes.toml; e.g. "
+                         "validation/perf/spectral-media.toml)")
     ap.add_argument("--variants", default="llvm_ad_rgb,scalar_rgb")
     ap.add_argument("--threads", type=int, default=None,
                     help="threads of both renderers (penumbra --threads, Mitsuba's Dr.Jit "
@@ -159,7 +164,7 @@ def main():
         sys.exit(f"llvm_ad_rgb needs LLVM 19: apt-get install -y libllvm19 (expected {LLVM}), "
                  "or set DRJIT_LIBLLVM_PATH")
 
-    scenes = tomllib.loads((ROOT / "validation" / "scenes.toml").read_text())["scene"]
+    scenes = tomllib.loads(args.scenes.read_text())["scene"]
     scenes = [s for s in scenes if s["status"] == "landed" and (not args.scene or s["name"] in args.scene)]
     variants = [v for v in args.variants.split(",") if v]
     seeds = list(range(1, args.repeat + 1))
@@ -199,6 +204,8 @@ def main():
         options += f" --engine {engine}"
     if args.variants != ap.get_default("variants"):
         options += f" --variants {args.variants}"
+    if args.scenes != ap.get_default("scenes"):
+        options += f" --scenes {args.scenes.resolve().relative_to(ROOT)}"
     lines = [
         f"Side-by-side at {args.spp} spp, medians of {args.repeat} seeds, "
         f"{args.threads or os.cpu_count()} thread(s); "
