@@ -10,7 +10,8 @@
 //!   and reflects ρ(λ) (both piecewise linear on the same wavelengths, so Le/(1 − ρ) = c at
 //!   every λ): the radiance is c everywhere, for each wavelength through a different number
 //!   of bounces (ρ from 0.1 to 0.9).
-//! - The spectral furnace again, traced from the light (`ptracer`).
+//! - The spectral furnace again, traced from the light (`ptracer`), and lit by a black body
+//!   (Planck's law at 5000 K, `<spectrum type="blackbody">`, spectral mode only).
 //! - Transmittance per wavelength: the camera at the centre of a sphere of homogeneous,
 //!   purely absorbing medium whose extinction σt(λ) varies 9-fold over the range, inside a
 //!   uniform environment L: every ray crosses the radius R, so the radiance is
@@ -21,7 +22,7 @@
 //!   so with null collisions): the radiance is L at every wavelength.
 //!
 //! Each image mean is z-tested against the integral with its standard error from the
-//! per-pixel sample variances, Šidák-corrected over the 21 scene-channels. Both tests were
+//! per-pixel sample variances, Šidák-corrected over the 24 scene-channels. Both tests were
 //! seen red with the film's value biased by 1% (z 7.7 and 9.2) and with the wavelength
 //! weights (1 / pdf) replaced by a uniform density's 470 nm (z 167 and 151).
 
@@ -97,7 +98,7 @@ fn render_mean_with(xml: &str, spp: u32, integrator: Option<&str>) -> ([f64; 3],
 }
 
 fn check(name: &str, mean: [f64; 3], se: [f64; 3], expected: [f64; 3]) {
-    let alpha = sidak(0.01, 21);
+    let alpha = sidak(0.01, 24);
     for c in 0..3 {
         let z = (mean[c] - expected[c]) / se[c];
         println!(
@@ -299,4 +300,35 @@ fn integrators_spectral_mode_renders_and_refuses() {
             Ok(()) => panic!("{refused} builds in spectral mode"),
         }
     }
+}
+
+/// Planck's law at `t` kelvins, W m⁻² sr⁻¹ nm⁻¹, `w` in nm (f64, CODATA 2014 as Mitsuba).
+fn planck(w: f64, t: f64) -> f64 {
+    let (h, c, k) = (6.62607004e-34f64, 2.99792458e8f64, 1.38064852e-23f64);
+    let l = w * 1e-9;
+    2.0 * h * c * c / (l.powi(5) * ((h * c / (l * k * t)).exp() - 1.0)) * 1e-9
+}
+
+/// A black-body environment: the furnace reflects ρ(λ) B(λ, 5000 K). RGB mode refuses the
+/// scene in one line, as Mitsuba's RGB variants do.
+#[test]
+fn spectral_furnace_under_a_black_body() {
+    let xml = furnace_xml(1.0).replace(
+        r#"<spectrum name="radiance" value="1"/>"#,
+        r#"<spectrum type="blackbody" name="radiance"><float name="temperature" value="5000"/></spectrum>"#,
+    );
+    assert!(xml.contains("blackbody"));
+    let (mean, se) = render_mean(&xml, 256);
+    check(
+        "black-body furnace",
+        mean,
+        se,
+        expected_rgb(|w| at(RHO, w) * planck(w, 5000.0)),
+    );
+    let desc = Scene::description_from_xml_str(&xml, &repo_path("tests/inline.xml"), &[]).unwrap();
+    let e = Job::build(&desc).map(|_| ()).unwrap_err().to_string();
+    assert!(
+        e.contains("blackbody spectrum") && e.contains("spectral mode only") && !e.contains('\n'),
+        "{e}"
+    );
 }

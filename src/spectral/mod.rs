@@ -30,7 +30,7 @@ mod wavelengths;
 pub use convert::{
     cie1931_xyz, cie1931_y, linear_rgb_rec, luminance, spectrum_to_srgb, spectrum_to_xyz,
 };
-pub use emission::{uniform, D65Emission};
+pub use emission::{blackbody, uniform, D65Emission};
 pub use list::{eval_spectrum_value, PreparedSpectrum};
 pub use upsample::{srgb_model_eval, srgb_model_fetch, srgb_model_mean, Coefficients};
 pub use wavelengths::{

@@ -21,6 +21,8 @@ pub enum ColorValue {
     Uniform { value: f32, lo: f32, hi: f32 },
     /// Mitsuba's `regular` / `irregular`: a wavelength list.
     Sampled(Box<PreparedSpectrum>),
+    /// Mitsuba's `blackbody`: Planck's law at `temperature` K inside [`lo`, `hi`] nm.
+    Blackbody { temperature: f32, lo: f32, hi: f32 },
 }
 
 impl ColorValue {
@@ -47,6 +49,15 @@ impl ColorValue {
                 hi: *hi as f32,
             },
             SpectralDesc::Sampled(v) => ColorValue::Sampled(Box::new(PreparedSpectrum::new(v))),
+            SpectralDesc::Blackbody {
+                temperature,
+                lo,
+                hi,
+            } => ColorValue::Blackbody {
+                temperature: *temperature as f32,
+                lo: *lo as f32,
+                hi: *hi as f32,
+            },
         }
     }
 
@@ -63,6 +74,15 @@ impl ColorValue {
                 Vec4::ZERO,
             ),
             ColorValue::Sampled(s) => s.eval(wavelengths),
+            ColorValue::Blackbody {
+                temperature,
+                lo,
+                hi,
+            } => Vec4::select(
+                wavelengths.cmpge(Vec4::splat(*lo)) & wavelengths.cmple(Vec4::splat(*hi)),
+                spectral::blackbody(wavelengths, *temperature),
+                Vec4::ZERO,
+            ),
         }
     }
 

@@ -51,7 +51,7 @@ fn value_max(v: &ColorValue) -> f32 {
             }
         },
         // An emission spectrum is never a volume's value; its largest value at 5 nm steps.
-        ColorValue::D65(_) => {
+        ColorValue::D65(_) | ColorValue::Blackbody { .. } => {
             let mut m = 0.0f32;
             for k in 0..95 {
                 m = m.max(v.eval(glam::Vec4::splat(360.0 + 5.0 * k as f32)).x);

@@ -40,6 +40,11 @@ use rayon::prelude::*;
 /// placed far from the world origin then keeps full f32 precision where it is seen, and renders
 /// the same image as the same scene near the origin.
 pub fn build(desc: &SceneDescription) -> Result<Scene> {
+    if let (Mode::Rgb, Some(what)) = (desc.mode, &desc.spectral_only) {
+        return Err(Error::Invalid(format!(
+            "{what} renders in spectral mode only (Mitsuba's RGB variants refuse it too): render with --mode spectral"
+        )));
+    }
     let s = &desc.sensor;
     let shift = DMat4::from_translation(-s.to_world.transform_point3(DVec3::ZERO));
     // The image is the film's crop window; the camera's projection is the whole film's.

@@ -35,6 +35,9 @@ pub enum SpectralDesc {
     Uniform { value: f64, lo: f64, hi: f64 },
     /// Mitsuba's `regular` / `irregular`: wavelength-value pairs, interpolated linearly.
     Sampled(SpectrumValue),
+    /// Mitsuba's `blackbody`: Planck's law at `temperature` kelvins in W m⁻² sr⁻¹ nm⁻¹,
+    /// inside [`lo`, `hi`] nm, 0 outside (spectral mode only).
+    Blackbody { temperature: f64, lo: f64, hi: f64 },
 }
 
 impl SpectralDesc {

@@ -1,7 +1,7 @@
 //! Emitters: `area` (on shapes) and the scene-level ones.
 
 use super::sensor::fov_desc;
-use super::texture::{texture_or, texture_param, Children};
+use super::texture::{constant_color, texture_or, texture_param, Children};
 use super::*;
 use crate::camera::FovAxis;
 use crate::spectrum::ColorRole;
@@ -126,8 +126,7 @@ pub(super) fn scene_emitter_desc(cx: &Ctx, o: &Object) -> Result<(EmitterDesc, f
         "point" => {
             let to_world = p.transform("to_world")?;
             let position = p.point("position", to_world.transform_point3(DVec3::ZERO))?;
-            let intensity = p
-                .color("intensity", ColorRole::Emission)?
+            let intensity = constant_color(cx, &mut p, &mut ch, "intensity", ColorRole::Emission)?
                 .unwrap_or_else(|| ColorDesc::default_for(1.0, ColorRole::Emission));
             EmitterDesc::Point {
                 position,
@@ -136,8 +135,7 @@ pub(super) fn scene_emitter_desc(cx: &Ctx, o: &Object) -> Result<(EmitterDesc, f
         }
         "spot" => {
             let to_world = p.transform("to_world")?;
-            let intensity = p
-                .color("intensity", ColorRole::Emission)?
+            let intensity = constant_color(cx, &mut p, &mut ch, "intensity", ColorRole::Emission)?
                 .unwrap_or_else(|| ColorDesc::default_for(1.0, ColorRole::Emission));
             let cutoff_angle = p.float("cutoff_angle", 20.0)?;
             let beam_width = p.float("beam_width", cutoff_angle * 0.75)?;
@@ -224,9 +222,9 @@ pub(super) fn scene_emitter_desc(cx: &Ctx, o: &Object) -> Result<(EmitterDesc, f
         "directional" => {
             let to_world = p.transform("to_world")?;
             let direction = p.point("direction", to_world.transform_vector3(DVec3::Z))?;
-            let irradiance = p
-                .color("irradiance", ColorRole::Emission)?
-                .unwrap_or_else(|| ColorDesc::default_for(1.0, ColorRole::Emission));
+            let irradiance =
+                constant_color(cx, &mut p, &mut ch, "irradiance", ColorRole::Emission)?
+                    .unwrap_or_else(|| ColorDesc::default_for(1.0, ColorRole::Emission));
             let direction = direction.try_normalize().ok_or_else(|| {
                 Error::scene(
                     &o.location,
@@ -241,8 +239,7 @@ pub(super) fn scene_emitter_desc(cx: &Ctx, o: &Object) -> Result<(EmitterDesc, f
         "constant" => {
             // Read by Mitsuba's Endpoint base class; a uniform background has no use for it.
             p.transform("to_world")?;
-            let radiance = p
-                .color("radiance", ColorRole::Emission)?
+            let radiance = constant_color(cx, &mut p, &mut ch, "radiance", ColorRole::Emission)?
                 .unwrap_or_else(|| ColorDesc::default_for(1.0, ColorRole::Emission));
             EmitterDesc::Constant {
                 radiance: non_negative(radiance, "radiance")?,

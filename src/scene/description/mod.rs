@@ -67,6 +67,9 @@ pub struct SceneDescription {
     /// The mode the scene is rendered in: chosen by the user (`--mode`), not by the file;
     /// RGB unless set. The build makes each colour parameter's RGB or spectral form of it.
     pub mode: crate::spectrum::Mode,
+    /// The first construct that only spectral mode renders (a `blackbody` spectrum, which
+    /// Mitsuba's RGB variants refuse too), named with its location; RGB mode refuses it.
+    pub spectral_only: Option<String>,
 }
 
 impl SceneDescription {
@@ -355,6 +358,8 @@ pub(super) struct Ctx<'a> {
     pub groups: RefCell<Vec<(*const Object, ShapeGroupDesc)>>,
     /// Media met so far, keyed like `groups`.
     pub media: RefCell<Vec<(*const Object, MediumDesc)>>,
+    /// See [`SceneDescription::spectral_only`].
+    pub spectral_only: RefCell<Option<String>>,
 }
 
 impl Ctx<'_> {
@@ -462,6 +467,7 @@ pub fn from_xml(doc: &Document) -> Result<SceneDescription> {
         warnings: RefCell::new(doc.warnings.clone()),
         groups: RefCell::new(Vec::new()),
         media: RefCell::new(Vec::new()),
+        spectral_only: RefCell::new(None),
     };
     let mut integrator = None;
     let mut sensors = Vec::new();
@@ -573,6 +579,7 @@ pub fn from_xml(doc: &Document) -> Result<SceneDescription> {
         media,
         warnings: cx.warnings.into_inner(),
         mode: crate::spectrum::Mode::Rgb,
+        spectral_only: cx.spectral_only.into_inner(),
     })
 }
 

@@ -213,6 +213,32 @@ pub(super) fn texture_param(
     }
 }
 
+/// A parameter Mitsuba reads as a texture that penumbra keeps constant (the intensity of
+/// point and spot lights, the radiance of the constant emitter, a directional's irradiance):
+/// a colour, float or spectrum property, or a nested constant spectrum plugin (`<spectrum
+/// type="blackbody">`, `uniform`, `srgb`); a spatially varying texture is refused.
+pub(super) fn constant_color(
+    cx: &Ctx,
+    p: &mut Props,
+    ch: &mut Children,
+    name: &str,
+    role: ColorRole,
+) -> Result<Option<ColorDesc>> {
+    if let Some(t) = ch.named(name) {
+        return match texture_desc(cx, t, role)? {
+            TextureDesc::Constant { rgb, spectral, .. } => Ok(Some(ColorDesc { rgb, spectral })),
+            _ => Err(Error::scene(
+                &t.location,
+                format!(
+                    "'{name}' must be a constant colour or spectrum here, not {}",
+                    describe(t)
+                ),
+            )),
+        };
+    }
+    p.color(name, role)
+}
+
 /// Like [`texture_param`] with a default, for parameters that always have a value.
 pub(super) fn texture_or(
     cx: &Ctx,
@@ -246,7 +272,8 @@ fn option<T: Default>(
 
 /// A `<texture>` object (nested, referenced, or declared at the scene level).
 pub(super) fn texture_desc(cx: &Ctx, o: &Object, role: ColorRole) -> Result<TextureDesc> {
-    if o.tag != "texture" {
+    // `<spectrum type="...">` is a spectrum plugin: Mitsuba 3 makes it a texture too.
+    if o.tag != "texture" && o.tag != "spectrum" {
         return Err(Error::scene(
             &o.location,
             format!("{} is not a texture", describe(o)),
@@ -345,6 +372,46 @@ pub(super) fn texture_desc(cx: &Ctx, o: &Object, role: ColorRole) -> Result<Text
                 rgb: DVec3::splat(value),
                 scalar: value,
                 spectral: SpectralDesc::Uniform { value, lo, hi },
+            }
+        }
+        "blackbody" => {
+            // Spectral variants only: Mitsuba's RGB variants refuse to evaluate it, and so
+            // does penumbra's RGB mode (`SceneDescription::spectral_only`).
+            let temperature = match p.take("temperature") {
+                Some((Value::Float(t), _)) if t.is_finite() && *t > 0.0 => *t,
+                Some((Value::Integer(t), _)) if *t > 0 => *t as f64,
+                Some((v, loc)) => {
+                    return Err(p.wrong_type("temperature", v, loc, "a temperature > 0 (kelvins)"))
+                }
+                None => {
+                    return Err(Error::scene(
+                        &o.location,
+                        format!("{} needs a 'temperature' (kelvins)", describe(o)),
+                    ))
+                }
+            };
+            let lo = p.float("wavelength_min", 360.0)?;
+            let hi = p.float("wavelength_max", 830.0)?;
+            if lo.partial_cmp(&hi).is_none_or(|o| o.is_ge()) || lo <= 0.0 {
+                return Err(Error::scene(
+                    &o.location,
+                    format!(
+                        "wavelength_min ({lo}) of {} must be positive and below wavelength_max ({hi})",
+                        describe(o)
+                    ),
+                ));
+            }
+            cx.spectral_only
+                .borrow_mut()
+                .get_or_insert_with(|| format!("the blackbody spectrum at {}", o.location));
+            TextureDesc::Constant {
+                rgb: DVec3::ZERO,
+                scalar: 0.0,
+                spectral: SpectralDesc::Blackbody {
+                    temperature,
+                    lo,
+                    hi,
+                },
             }
         }
         "volume" => {
