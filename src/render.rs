@@ -41,7 +41,7 @@ impl Job {
         let integrator = Integrator::build(&desc.integrator, &scene)?;
         if scene.mode == Mode::Spectral && !integrator.supports_spectral() {
             return Err(Error::Invalid(format!(
-                "spectral mode renders with the path, direct, volpath, volpathmis and ptracer integrators; {} renders in RGB mode only (docs/spectral.md says why)",
+                "spectral mode renders with the path, direct, volpath, volpathmis, ptracer and aov integrators; {} renders in RGB mode only (docs/spectral.md says why)",
                 integrator.name()
             )));
         }
@@ -333,7 +333,11 @@ fn render_tile(
                         // weights (1 / pdf).
                         let (wl, weight) = crate::spectral::sample_wavelengths(stream.next_1d());
                         let l = integrator.li(scene, ray, wl, &mut stream, &mut r.stats);
-                        from_rgb(crate::spectral::spectrum_to_srgb(l * weight, wl))
+                        if integrator.outputs_spectrum() {
+                            from_rgb(crate::spectral::spectrum_to_srgb(l * weight, wl))
+                        } else {
+                            l
+                        }
                     }
                 };
                 r.add((x, y), pos, l, (width, height));

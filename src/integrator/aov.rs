@@ -22,9 +22,8 @@ use crate::integrator::{Integrator, PathStats};
 use crate::sampler::SampleStream;
 pub use crate::scene::description::AovKind;
 use crate::scene::Scene;
-use crate::spectrum::NO_WAVELENGTHS;
 use crate::spectrum::{from_rgb, rgb, Spectrum};
-use glam::Vec3;
+use glam::{Vec3, Vec4};
 
 #[derive(Clone, Debug)]
 pub struct AovIntegrator {
@@ -55,15 +54,27 @@ impl AovIntegrator {
             .collect()
     }
 
+    /// Whether the current group's values are spectra (converted to RGB by the film in
+    /// spectral mode, as Mitsuba's `aov` converts them): a nested integrator's radiance and
+    /// the `albedo`; the geometric AOVs are numbers and are written as they are.
+    pub fn outputs_spectrum(&self) -> bool {
+        self.group < self.nested.len()
+            || matches!(
+                self.aovs.get(self.group - self.nested.len()),
+                Some((_, AovKind::Albedo))
+            )
+    }
+
     pub fn li(
         &self,
         scene: &Scene,
         ray: Ray,
+        wl: Vec4,
         sampler: &mut SampleStream,
         stats: &mut PathStats,
     ) -> Spectrum {
         if let Some((_, nested)) = self.nested.get(self.group) {
-            return nested.li(scene, ray, NO_WAVELENGTHS, sampler, stats);
+            return nested.li(scene, ray, wl, sampler, stats);
         }
         let Some((_, kind)) = self.aovs.get(self.group - self.nested.len()) else {
             return Spectrum::ZERO;
@@ -80,7 +91,7 @@ impl AovIntegrator {
             AovKind::ShNormal => from_rgb(si.frame.n),
             AovKind::Uv => rgb(si.uv.x, si.uv.y, 0.0),
             AovKind::Albedo => {
-                let bsdf = scene.shading_bsdf(&si, NO_WAVELENGTHS);
+                let bsdf = scene.shading_bsdf(&si, wl);
                 let wi = si.frame.to_local(-ray.d.normalize());
                 bsdf.eval(wi, Vec3::Z) * std::f32::consts::PI
             }

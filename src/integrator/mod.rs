@@ -86,7 +86,16 @@ impl Integrator {
                 | Integrator::VolPath(_)
                 | Integrator::VolPathMis(_)
                 | Integrator::ParticleTracer(_)
-        )
+        ) || matches!(self, Integrator::Aov(a) if a.nested.iter().all(|(_, i)| i.supports_spectral()))
+    }
+
+    /// Whether [`Integrator::li`] returns a spectrum, which spectral mode converts to RGB:
+    /// all but the geometric channels of `aov` (depth, normals, ...), which are numbers.
+    pub fn outputs_spectrum(&self) -> bool {
+        match self {
+            Integrator::Aov(a) => a.outputs_spectrum(),
+            _ => true,
+        }
     }
 
     pub fn name(&self) -> &'static str {
@@ -116,9 +125,9 @@ impl Integrator {
         match self {
             Integrator::Path(p) => p.li(scene, ray, wl, sampler, stats),
             Integrator::Direct(d) => d.li(scene, ray, wl, sampler, stats),
+            Integrator::Aov(a) => a.li(scene, ray, wl, sampler, stats),
             // RGB only (`Integrator::supports_spectral`):
             Integrator::Whitted(w) => w.li(scene, ray, sampler, stats),
-            Integrator::Aov(a) => a.li(scene, ray, sampler, stats),
             Integrator::Radiosity(r) => r.li_with_solution(scene, ray, sampler, stats),
             Integrator::VolPath(v) => v.li(scene, ray, wl, sampler, stats),
             Integrator::VolPathMis(v) => v.li(scene, ray, wl, sampler, stats),
