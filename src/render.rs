@@ -41,7 +41,7 @@ impl Job {
         let integrator = Integrator::build(&desc.integrator, &scene)?;
         if scene.mode == Mode::Spectral && !integrator.supports_spectral() {
             return Err(Error::Invalid(format!(
-                "spectral mode renders with the path, direct, volpath, volpathmis, ptracer and aov integrators; {} renders in RGB mode only (docs/spectral.md says why)",
+                "spectral mode renders with the path, direct, volpath, volpathmis, ptracer, bdpt and aov integrators; {} renders in RGB mode only (docs/spectral.md says why)",
                 integrator.name()
             )));
         }
@@ -622,14 +622,42 @@ fn render_bdpt(
                         } else {
                             scene.camera.generate_ray(pos * inv_res)
                         };
-                        let l = bdpt.sample(
-                            scene,
-                            ray,
-                            &mut stream,
-                            scratch,
-                            &mut row.stats,
-                            &mut row.splats,
-                        );
+                        let l = match scene.mode {
+                            Mode::Rgb => bdpt.sample(
+                                scene,
+                                ray,
+                                NO_WAVELENGTHS,
+                                &mut stream,
+                                scratch,
+                                &mut row.stats,
+                                &mut row.splats,
+                            ),
+                            Mode::Spectral => {
+                                // One set of wavelengths per sample, drawn after the camera
+                                // ray as for the path tracer, shared by both subpaths; the
+                                // radiance and this sample's splats are converted with
+                                // their weights.
+                                let (wl, weight) =
+                                    crate::spectral::sample_wavelengths(stream.next_1d());
+                                let first = row.splats.len();
+                                let l = bdpt.sample(
+                                    scene,
+                                    ray,
+                                    wl,
+                                    &mut stream,
+                                    scratch,
+                                    &mut row.stats,
+                                    &mut row.splats,
+                                );
+                                let to_srgb = |v: crate::spectrum::Spectrum| {
+                                    from_rgb(crate::spectral::spectrum_to_srgb(v * weight, wl))
+                                };
+                                for sp in &mut row.splats[first..] {
+                                    sp.value = to_srgb(sp.value);
+                                }
+                                to_srgb(l)
+                            }
+                        };
                         row.samples.push((pos, l));
                     }
                     row

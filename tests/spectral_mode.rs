@@ -13,6 +13,8 @@
 //! - The spectral furnace through `aov`: its nested image and `albedo` converted from spectra
 //!   (the albedo is ρ's colour under an equal-energy light, as Mitsuba's aov computes it), its
 //!   depth the same numbers as in RGB mode.
+//! - Both furnaces with `bdpt`: the two subpaths share the sample's wavelengths, and the
+//!   light-tracing splats are converted with their weights.
 //! - The spectral furnace again, traced from the light (`ptracer`), and lit by a black body
 //!   (Planck's law at 5000 K, `<spectrum type="blackbody">`, spectral mode only).
 //! - Transmittance per wavelength: the camera at the centre of a sphere of homogeneous,
@@ -25,7 +27,7 @@
 //!   so with null collisions): the radiance is L at every wavelength.
 //!
 //! Each image mean is z-tested against the integral with its standard error from the
-//! per-pixel sample variances, Šidák-corrected over the 30 scene-channels. Both tests were
+//! per-pixel sample variances, Šidák-corrected over the 36 scene-channels. Both tests were
 //! seen red with the film's value biased by 1% (z 7.7 and 9.2) and with the wavelength
 //! weights (1 / pdf) replaced by a uniform density's 470 nm (z 167 and 151).
 
@@ -101,7 +103,7 @@ fn render_mean_with(xml: &str, spp: u32, integrator: Option<&str>) -> ([f64; 3],
 }
 
 fn check(name: &str, mean: [f64; 3], se: [f64; 3], expected: [f64; 3]) {
-    let alpha = sidak(0.01, 30);
+    let alpha = sidak(0.01, 36);
     for c in 0..3 {
         let z = (mean[c] - expected[c]) / se[c];
         println!(
@@ -167,6 +169,28 @@ fn spectral_furnace_traced_from_the_light() {
         mean,
         se,
         expected_rgb(|w| at(RHO, w) * l),
+    );
+}
+
+/// bdpt in spectral mode, on both furnaces: every strategy (camera paths hitting the emitter,
+/// next-event connections, light paths splatted onto the film) at the sample's wavelengths.
+#[test]
+fn bdpt_renders_both_furnaces_spectrally() {
+    let l = 0.8;
+    let (mean, se) = render_mean_with(&furnace_xml(l), 512, Some("bdpt"));
+    check(
+        "spectral furnace, bdpt",
+        mean,
+        se,
+        expected_rgb(|w| at(RHO, w) * l),
+    );
+    let c = 0.5;
+    let (mean, se) = render_mean_with(&white_furnace_xml(c), 128, Some("bdpt"));
+    check(
+        "white furnace per wavelength, bdpt",
+        mean,
+        se,
+        expected_rgb(|_| c),
     );
 }
 
@@ -248,11 +272,9 @@ fn scattering_heterogeneous_medium_is_a_furnace_at_every_wavelength() {
     }
 }
 
-#[test]
-fn white_furnace_per_wavelength_inside_an_emitting_sphere() {
-    let c = 0.5;
+fn white_furnace_xml(c: f64) -> String {
     let le: Vec<(f64, f64)> = RHO.iter().map(|&(w, r)| (w, c * (1.0 - r))).collect();
-    let xml = format!(
+    format!(
         r#"<scene version="3.0.0">
     <integrator type="path"/>
     {}
@@ -267,7 +289,13 @@ fn white_furnace_per_wavelength_inside_an_emitting_sphere() {
             .replace("{origin}", "0, 0, 0.1"),
         list_xml(RHO),
         list_xml(&le)
-    );
+    )
+}
+
+#[test]
+fn white_furnace_per_wavelength_inside_an_emitting_sphere() {
+    let c = 0.5;
+    let xml = white_furnace_xml(c);
     let (mean, se) = render_mean(&xml, 256);
     check(
         "white furnace per wavelength",
@@ -291,10 +319,10 @@ fn integrators_spectral_mode_renders_and_refuses() {
         desc.mode = Mode::Spectral;
         Job::build(&desc).map(|_| ()).map_err(|e| e.to_string())
     };
-    for ok in ["path", "direct", "volpath", "volpathmis", "ptracer"] {
+    for ok in ["path", "direct", "volpath", "volpathmis", "ptracer", "bdpt"] {
         build(ok).unwrap_or_else(|e| panic!("{ok}: {e}"));
     }
-    for refused in ["bdpt", "sppm", "whitted"] {
+    for refused in ["sppm", "whitted"] {
         match build(refused) {
             Err(e) => assert!(
                 e.contains(&format!("{refused} renders in RGB mode only")) && !e.contains('\n'),

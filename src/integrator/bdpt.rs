@@ -79,8 +79,8 @@ use crate::sampler::SampleStream;
 use crate::scene::Scene;
 use crate::shape::SurfaceInteraction;
 use crate::spectrum::Spectrum;
-use crate::spectrum::NO_WAVELENGTHS;
-use glam::{DVec2, Vec2, Vec3};
+
+use glam::{DVec2, Vec2, Vec3, Vec4};
 
 /// The most vertices a subpath holds: an unbounded `max_depth` (−1) relies on Russian
 /// roulette to end paths, which makes a subpath of this length about as likely as
@@ -167,6 +167,8 @@ pub struct Subpath {
     /// A light subpath's BSDF in importance mode, for the weight of a delta lobe sampled
     /// through a transmissive surface.
     importance: ShadingBsdf,
+    /// The sample's wavelengths (spectral mode; both subpaths carry the same four).
+    wl: Vec4,
 }
 
 /// The buffers of one worker: allocated once, reused for every sample.
@@ -289,7 +291,7 @@ impl Subpath {
         while self.bsdfs.len() <= i {
             self.bsdfs.push(ShadingBsdf::new());
         }
-        scene.shading_bsdf_into(&si, NO_WAVELENGTHS, &mut self.bsdfs[i]);
+        scene.shading_bsdf_into(&si, self.wl, &mut self.bsdfs[i]);
         self.v[i].bsdf = BsdfRef::Own(i as u32);
     }
 
@@ -494,16 +496,22 @@ impl Bdpt {
     /// connection. Returns the radiance of the strategies t ≥ 2 (for this sample's film
     /// position) and pushes those of t = 1 to `splats` (weight 1 each: the caller divides by
     /// the samples per pixel).
+    ///
+    /// `wl` are the sample's wavelengths in spectral mode ([`crate::spectrum::NO_WAVELENGTHS`] in RGB mode):
+    /// both subpaths and every connection are evaluated at them, and the caller converts the
+    /// radiance and the splats with their weights.
+    #[allow(clippy::too_many_arguments)]
     pub fn sample(
         &self,
         scene: &Scene,
         ray: Ray,
+        wl: Vec4,
         sampler: &mut SampleStream,
         scratch: &mut Scratch,
         stats: &mut PathStats,
         splats: &mut Vec<Splat>,
     ) -> Spectrum {
-        self.sample_recorded(scene, ray, sampler, scratch, stats, splats, &mut |_| {})
+        self.sample_recorded(scene, ray, wl, sampler, scratch, stats, splats, &mut |_| {})
     }
 
     #[allow(clippy::too_many_arguments)]
@@ -511,6 +519,7 @@ impl Bdpt {
         &self,
         scene: &Scene,
         ray: Ray,
+        wl: Vec4,
         sampler: &mut SampleStream,
         scratch: &mut Scratch,
         stats: &mut PathStats,
@@ -521,6 +530,8 @@ impl Bdpt {
             return Spectrum::ZERO;
         }
         let margin = film_margin(scene);
+        scratch.cam.wl = wl;
+        scratch.light.wl = wl;
         self.camera_subpath(scene, ray, margin, sampler, &mut scratch.cam, stats);
         self.light_subpath(scene, sampler, &mut scratch.light, stats);
         let (cam, light) = (&scratch.cam, &scratch.light);
@@ -609,8 +620,8 @@ impl Bdpt {
             // The camera subpath ends on an emitter.
             let pt = &cam.v[t - 1];
             let le = match pt.kind {
-                Kind::Surface => emission_at(scene, Some(&pt.si), -pt.wi, NO_WAVELENGTHS),
-                Kind::InfiniteLight => scene.eval_environment(-pt.d, NO_WAVELENGTHS),
+                Kind::Surface => emission_at(scene, Some(&pt.si), -pt.wi, cam.wl),
+                Kind::InfiniteLight => scene.eval_environment(-pt.d, cam.wl),
                 _ => Spectrum::ZERO,
             };
             return Some(Candidate {
@@ -647,7 +658,7 @@ impl Bdpt {
             let pt = &cam.v[t - 1];
             let (bsdf, wi) = cam.connectible(scene, t - 1)?;
             let u = sampler.next_2d();
-            let (e, ds) = scene.sample_emitter_direction_indexed(pt.p(), u, NO_WAVELENGTHS)?;
+            let (e, ds) = scene.sample_emitter_direction_indexed(pt.p(), u, cam.wl)?;
             let f = bsdf.eval(wi, pt.si.frame.to_local(ds.d));
             let value = positive(pt.beta * f * ds.radiance / ds.pdf)?;
             return Some(Candidate {
@@ -821,13 +832,9 @@ impl Bdpt {
         let u_dir = sampler.next_2d();
         let u_pos = sampler.next_2d();
         let emitter = &scene.emitters[e];
-        let Some(er) = emitter.sample_ray(
-            u_pos,
-            u_dir,
-            &scene.shapes,
-            scene.bounding_sphere,
-            NO_WAVELENGTHS,
-        ) else {
+        let Some(er) =
+            emitter.sample_ray(u_pos, u_dir, &scene.shapes, scene.bounding_sphere, light.wl)
+        else {
             return;
         };
         let d = er.ray.d;
@@ -913,7 +920,7 @@ impl Bdpt {
                 };
                 let weight = if transmissive {
                     // The same lobe and direction (importance mode changes weights only).
-                    scene.shading_bsdf_into(&si, NO_WAVELENGTHS, &mut light.importance);
+                    scene.shading_bsdf_into(&si, light.wl, &mut light.importance);
                     light.importance.set_importance();
                     match light.importance.sample(wi_local, u1, u2) {
                         Some(b) => b.weight,
@@ -1381,6 +1388,7 @@ mod tests {
             bdpt.sample_recorded(
                 scene,
                 ray,
+                crate::spectrum::NO_WAVELENGTHS,
                 &mut stream,
                 &mut scratch,
                 &mut stats,

@@ -86,6 +86,7 @@ impl Integrator {
                 | Integrator::VolPath(_)
                 | Integrator::VolPathMis(_)
                 | Integrator::ParticleTracer(_)
+                | Integrator::Bdpt(_)
         ) || matches!(self, Integrator::Aov(a) if a.nested.iter().all(|(_, i)| i.supports_spectral()))
     }
 
