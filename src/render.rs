@@ -20,7 +20,7 @@ use crate::scene::Scene;
 use crate::simd::Backend;
 use crate::spectrum::to_rgb;
 use crate::spectrum::{from_rgb, Mode, NO_WAVELENGTHS};
-use glam::Vec2;
+use glam::{Vec2, Vec4};
 use rayon::prelude::*;
 use std::sync::atomic::{AtomicU64, Ordering};
 use std::time::Instant;
@@ -114,9 +114,6 @@ pub enum EngineRan {
     /// The lane engine was asked for, but does not cover this integrator (named): the
     /// scalar engine ran.
     ScalarFallback(&'static str),
-    /// The lane engine was asked for in spectral mode, which it does not render yet: the
-    /// scalar engine ran.
-    ScalarSpectral,
 }
 
 impl std::fmt::Display for EngineRan {
@@ -124,9 +121,6 @@ impl std::fmt::Display for EngineRan {
         match self {
             EngineRan::Scalar => write!(f, "scalar"),
             EngineRan::Lanes(b) => write!(f, "lanes ({b}, {} wide)", b.width()),
-            EngineRan::ScalarSpectral => {
-                write!(f, "scalar (the lane engine renders RGB mode only so far)")
-            }
             EngineRan::ScalarFallback(name) => write!(
                 f,
                 "scalar (the lane engine covers the path integrator, not {name})"
@@ -138,10 +132,9 @@ impl std::fmt::Display for EngineRan {
 impl Engine {
     /// What a render of `integrator` on this engine runs on; an error if a lane backend
     /// was named that this processor does not run.
-    pub fn resolve(self, integrator: &Integrator, mode: Mode) -> Result<EngineRan> {
+    pub fn resolve(self, integrator: &Integrator) -> Result<EngineRan> {
         Ok(match (self, integrator) {
             (Engine::Scalar, _) => EngineRan::Scalar,
-            (Engine::Lanes(_), _) if mode == Mode::Spectral => EngineRan::ScalarSpectral,
             (Engine::Lanes(backend), Integrator::Path(_)) => {
                 let b = backend.unwrap_or_else(Backend::best);
                 if !b.supported() {
@@ -312,9 +305,26 @@ fn render_tile(
             camera: &camera,
         };
         let mut out = vec![(Vec2::ZERO, crate::spectrum::Spectrum::ZERO); queue.total];
-        let ran = trace_tile(backend, &queue, &mut out, &mut r.stats, &mut r.lanes);
+        let mut wavelengths = match scene.mode {
+            Mode::Rgb => Vec::new(),
+            Mode::Spectral => vec![(Vec4::ZERO, Vec4::ZERO); queue.total],
+        };
+        let ran = trace_tile(
+            backend,
+            &queue,
+            &mut out,
+            &mut wavelengths,
+            &mut r.stats,
+            &mut r.lanes,
+        );
         assert!(ran, "the {backend} backend was checked before the render");
         for (q, &(pos, l)) in out.iter().enumerate() {
+            // Spectral mode: the film's linear sRGB of the values times their weights, as
+            // the scalar engine converts them.
+            let l = match wavelengths.get(q) {
+                Some(&(wl, weight)) => from_rgb(crate::spectral::spectrum_to_srgb(l * weight, wl)),
+                None => l,
+            };
             r.add(pixel(q), pos, l, (width, height));
         }
         return r;
@@ -381,7 +391,7 @@ pub fn render_with(
     settings: &RenderSettings,
     progress: &(dyn Fn(u64, u64) + Sync),
 ) -> Result<RenderOutput> {
-    let engine = engine.resolve(integrator, scene.mode)?;
+    let engine = engine.resolve(integrator)?;
     let pool = thread_pool(settings.threads)?;
     match integrator {
         Integrator::ParticleTracer(pt) => {

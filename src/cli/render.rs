@@ -318,7 +318,7 @@ pub(crate) fn run_render(args: RenderArgs) -> Result<()> {
     let mut job = Job::build(&desc)?;
     job.engine = engine(&args)?;
     // (fails here, before any work, if a named lane backend cannot run)
-    let engine_ran = job.engine.resolve(&job.integrator, job.scene.mode)?;
+    let engine_ran = job.engine.resolve(&job.integrator)?;
     for w in &job.scene.warnings {
         eprintln!("warning: {w}");
     }

@@ -35,13 +35,19 @@ use glam::Vec2;
 pub type CameraSample = (SampleStream, Vec2, Ray);
 
 /// What one tile asks of the lane engine: `total` camera samples, sample q made by
-/// `camera(q)` (q in the scalar engine's order), their values written to `out[q]`.
+/// `camera(q)` (q in the scalar engine's order), their values written to `out[q]`. In
+/// spectral mode (the scene's) each sample draws its four wavelengths from its stream right
+/// after the camera's dimensions, as the scalar engine does, and writes them with their
+/// weights to `wavelengths[q]`; the caller converts the values.
 pub struct TileQueue<'a> {
     pub scene: &'a Scene,
     pub path: &'a PathIntegrator,
     pub total: usize,
     pub camera: &'a (dyn Fn(usize) -> CameraSample + Sync),
 }
+
+/// A spectral sample's wavelengths and their weights (1 / pdf).
+pub type SampledWavelengths = (glam::Vec4, glam::Vec4);
 
 /// Traces `queue` in lanes of `backend`, writing each sample's film position and value to
 /// `out` (at least `queue.total` long) and adding to the counters. False (and nothing
@@ -50,15 +56,21 @@ pub fn trace_tile(
     backend: Backend,
     queue: &TileQueue,
     out: &mut [(Vec2, Spectrum)],
+    wavelengths: &mut [SampledWavelengths],
     stats: &mut PathStats,
     lanes: &mut LaneStats,
 ) -> bool {
     assert!(out.len() >= queue.total, "one result slot per sample");
+    assert!(
+        queue.scene.mode == crate::spectrum::Mode::Rgb || wavelengths.len() >= queue.total,
+        "one wavelength slot per sample in spectral mode"
+    );
     dispatch(
         backend,
         TileProgram {
             queue,
             out,
+            wavelengths,
             stats,
             lanes,
         },
@@ -69,6 +81,7 @@ pub fn trace_tile(
 struct TileProgram<'a, 'b> {
     queue: &'a TileQueue<'b>,
     out: &'a mut [(Vec2, Spectrum)],
+    wavelengths: &'a mut [SampledWavelengths],
     stats: &'a mut PathStats,
     lanes: &'a mut LaneStats,
 }
@@ -77,7 +90,14 @@ impl LaneProgram for TileProgram<'_, '_> {
     type Output = ();
     #[inline(always)]
     fn run<L: Lanes>(self, l: L) {
-        trace_queue(l, self.queue, self.out, self.stats, self.lanes)
+        trace_queue(
+            l,
+            self.queue,
+            self.out,
+            self.wavelengths,
+            self.stats,
+            self.lanes,
+        )
     }
 }
 
@@ -138,9 +158,11 @@ fn trace_queue<L: Lanes>(
     l: L,
     queue: &TileQueue,
     out: &mut [(Vec2, Spectrum)],
+    wavelengths: &mut [SampledWavelengths],
     stats: &mut PathStats,
     counters: &mut LaneStats,
 ) {
+    let spectral = queue.scene.mode == crate::spectrum::Mode::Spectral;
     let TileQueue {
         scene,
         path,
@@ -164,9 +186,14 @@ fn trace_queue<L: Lanes>(
             let i = free.trailing_zeros() as usize;
             let q = next;
             next += 1;
-            let (sampler, pos, ray) = camera(q);
-            // (RGB only: spectral mode renders with the scalar engine, `EngineChoice::resolve`)
-            let Some(st) = path.start(ray, glam::Vec4::ZERO) else {
+            let (mut sampler, pos, ray) = camera(q);
+            let wl = if spectral {
+                wavelengths[q] = crate::spectral::sample_wavelengths(sampler.next_1d());
+                wavelengths[q].0
+            } else {
+                crate::spectrum::NO_WAVELENGTHS
+            };
+            let Some(st) = path.start(ray, wl) else {
                 // (max_depth 0: the path is black and takes no lane)
                 out[q] = (pos, Spectrum::ZERO);
                 continue;
