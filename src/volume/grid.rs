@@ -33,6 +33,18 @@ use crate::spectral::{srgb_model_eval, Coefficients};
 use crate::texture::bitmap::Wrap;
 use glam::{Mat4, Vec3, Vec4};
 
+/// The cells one lookup reads ([`GridVolume::cells`]).
+enum Cells {
+    Nearest([usize; 3]),
+    /// Cells `xs × ys × zs`; `w1` the weights of the upper ones (`1 − w1` the lower ones').
+    Trilinear {
+        xs: [usize; 2],
+        ys: [usize; 2],
+        zs: [usize; 2],
+        w1: Vec3,
+    },
+}
+
 #[derive(Clone, Debug)]
 pub struct GridVolume {
     res: [usize; 3],
@@ -141,34 +153,23 @@ impl GridVolume {
         let Some(cells) = &self.spectral else {
             return Vec4::ZERO;
         };
-        let q = self.to_local.transform_point3(p);
-        if !q.is_finite() {
-            return Vec4::ZERO;
-        }
-        let [nx, ny, nz] = self.res;
-        let cell = |x: usize, y: usize, z: usize| cells[(z * ny + y) * nx + x];
+        let cell = |[x, y, z]: [usize; 3]| cells[(z * self.res[1] + y) * self.res[0] + x];
         let spectrum = |c: [f32; 4]| srgb_model_eval([c[0], c[1], c[2]], wavelengths);
-        if !self.trilinear {
-            let x = self.wrap.apply((q.x * nx as f32).floor() as i64, nx);
-            let y = self.wrap.apply((q.y * ny as f32).floor() as i64, ny);
-            let z = self.wrap.apply((q.z * nz as f32).floor() as i64, nz);
-            let c = cell(x, y, z);
-            return spectrum(c) * c[3];
-        }
-        let pos = q * Vec3::new(nx as f32, ny as f32, nz as f32) - 0.5;
-        let f0 = pos.floor();
-        let w1 = pos - f0;
+        let (xs, ys, zs, w1) = match self.cells(p) {
+            None => return Vec4::ZERO,
+            Some(Cells::Nearest(at)) => {
+                let c = cell(at);
+                return spectrum(c) * c[3];
+            }
+            Some(Cells::Trilinear { xs, ys, zs, w1 }) => (xs, ys, zs, w1),
+        };
         let w0 = Vec3::ONE - w1;
-        let i0 = [f0.x as i64, f0.y as i64, f0.z as i64];
-        let xs = [self.wrap.apply(i0[0], nx), self.wrap.apply(i0[0] + 1, nx)];
-        let ys = [self.wrap.apply(i0[1], ny), self.wrap.apply(i0[1] + 1, ny)];
-        let zs = [self.wrap.apply(i0[2], nz), self.wrap.apply(i0[2] + 1, nz)];
         // Along x, then y, then z: the spectra and the scales separately.
         let mut v = [[Vec4::ZERO; 2]; 2];
         let mut s = [[0.0f32; 2]; 2];
         for (k, z) in zs.iter().enumerate() {
             for (j, y) in ys.iter().enumerate() {
-                let (a, b) = (cell(xs[0], *y, *z), cell(xs[1], *y, *z));
+                let (a, b) = (cell([xs[0], *y, *z]), cell([xs[1], *y, *z]));
                 v[k][j] = spectrum(a) * w0.x + spectrum(b) * w1.x;
                 s[k][j] = a[3] * w0.x + b[3] * w1.x;
             }
@@ -212,27 +213,41 @@ impl GridVolume {
         }
     }
 
-    /// The value at world-space point `p`.
+    /// The cells a lookup at world-space point `p` reads, after the wrap mode: one (nearest)
+    /// or the eight around it with the upper cells' trilinear weights; `None` where `p` maps
+    /// to no finite grid coordinates.
     #[inline]
-    pub fn eval(&self, p: Vec3) -> Vec3 {
+    fn cells(&self, p: Vec3) -> Option<Cells> {
         let q = self.to_local.transform_point3(p);
         if !q.is_finite() {
-            return Vec3::ZERO;
+            return None;
         }
         let [nx, ny, nz] = self.res;
         if !self.trilinear {
             let x = self.wrap.apply((q.x * nx as f32).floor() as i64, nx);
             let y = self.wrap.apply((q.y * ny as f32).floor() as i64, ny);
             let z = self.wrap.apply((q.z * nz as f32).floor() as i64, nz);
-            return self.fetch(x, y, z);
+            return Some(Cells::Nearest([x, y, z]));
         }
         let pos = q * Vec3::new(nx as f32, ny as f32, nz as f32) - 0.5;
         let f0 = pos.floor();
-        let w1 = pos - f0;
         let i0 = [f0.x as i64, f0.y as i64, f0.z as i64];
-        let xs = [self.wrap.apply(i0[0], nx), self.wrap.apply(i0[0] + 1, nx)];
-        let ys = [self.wrap.apply(i0[1], ny), self.wrap.apply(i0[1] + 1, ny)];
-        let zs = [self.wrap.apply(i0[2], nz), self.wrap.apply(i0[2] + 1, nz)];
+        Some(Cells::Trilinear {
+            xs: [self.wrap.apply(i0[0], nx), self.wrap.apply(i0[0] + 1, nx)],
+            ys: [self.wrap.apply(i0[1], ny), self.wrap.apply(i0[1] + 1, ny)],
+            zs: [self.wrap.apply(i0[2], nz), self.wrap.apply(i0[2] + 1, nz)],
+            w1: pos - f0,
+        })
+    }
+
+    /// The value at world-space point `p`.
+    #[inline]
+    pub fn eval(&self, p: Vec3) -> Vec3 {
+        let (xs, ys, zs, w1) = match self.cells(p) {
+            None => return Vec3::ZERO,
+            Some(Cells::Nearest([x, y, z])) => return self.fetch(x, y, z),
+            Some(Cells::Trilinear { xs, ys, zs, w1 }) => (xs, ys, zs, w1),
+        };
         let wx = [1.0 - w1.x, w1.x];
         let wy = [1.0 - w1.y, w1.y];
         let wz = [1.0 - w1.z, w1.z];
