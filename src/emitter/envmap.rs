@@ -95,22 +95,13 @@ impl EnvMapEmitter {
         use rayon::prelude::*;
         let coeffs: Vec<[f32; 4]> = texels
             .par_iter()
-            .map(|t| Self::spectral_texel(*t))
+            .map(|t| spectral::scaled_coefficients(*t))
             .collect();
         Self::from_spectral_texels(width, height, coeffs, scale, to_world)
     }
 
-    /// A texel as spectral mode stores it: the coefficients of `rgb` / max(10⁻⁸, s)
-    /// ([`spectral::srgb_model_fetch`]) and s = 2 max(rgb), Mitsuba's four channels.
-    pub fn spectral_texel(rgb: [f32; 3]) -> [f32; 4] {
-        let s = rgb[0].max(rgb[1]).max(rgb[2]) * 2.0;
-        let d = s.max(1e-8);
-        let c = spectral::srgb_model_fetch([rgb[0] / d, rgb[1] / d, rgb[2] / d]);
-        [c[0], c[1], c[2], s]
-    }
-
     /// Spectral mode's envmap from texels already in the form of
-    /// [`EnvMapEmitter::spectral_texel`] (e.g. Mitsuba's own coefficients, for comparisons).
+    /// [`spectral::scaled_coefficients`] (e.g. Mitsuba's own coefficients, for comparisons).
     pub fn from_spectral_texels(
         width: usize,
         height: usize,

@@ -32,7 +32,10 @@ pub use convert::{
 };
 pub use emission::{blackbody, uniform, D65Emission};
 pub use list::{eval_spectrum_value, PreparedSpectrum};
-pub use upsample::{srgb_model_eval, srgb_model_fetch, srgb_model_mean, Coefficients};
+pub use upsample::{
+    scaled_coefficients, scaled_coefficients_with, srgb_model_eval, srgb_model_fetch,
+    srgb_model_mean, Coefficients,
+};
 pub use wavelengths::{
     pdf_rgb_spectrum, pdf_rgb_spectrum4, sample_rgb_spectrum, sample_wavelengths, shifted_samples,
 };

@@ -134,6 +134,25 @@ pub fn srgb_model_fetch(rgb: [f32; 3]) -> Coefficients {
     })
 }
 
+/// An unbounded colour as Mitsuba's spectral variants store it in an `envmap` or a
+/// three-channel `gridvolume`: the scale s = 2 max(rgb) and the coefficients of
+/// rgb / max(s, 10⁻⁸) (a reflectance in [0, ½]) given by `fetch`, as `[c₀, c₁, c₂, s]`; the
+/// colour's spectrum is s · S(λ).
+pub fn scaled_coefficients_with(
+    rgb: [f32; 3],
+    fetch: impl FnOnce([f32; 3]) -> Coefficients,
+) -> [f32; 4] {
+    let s = rgb[0].max(rgb[1]).max(rgb[2]) * 2.0;
+    let d = s.max(1e-8);
+    let c = fetch([rgb[0] / d, rgb[1] / d, rgb[2] / d]);
+    [c[0], c[1], c[2], s]
+}
+
+/// [`scaled_coefficients_with`] penumbra's own upsampling ([`srgb_model_fetch`]).
+pub fn scaled_coefficients(rgb: [f32; 3]) -> [f32; 4] {
+    scaled_coefficients_with(rgb, srgb_model_fetch)
+}
+
 /// Fits every column of the table now (in parallel with rayon) instead of on first use; for
 /// measuring the table's cost and comparing it with Mitsuba's whole table.
 pub fn fit_whole_table() {

@@ -130,11 +130,10 @@ impl GridVolume {
             .data
             .chunks_exact(3)
             .map(|c| {
-                let scale = c[0].max(c[1]).max(c[2]) * 2.0;
-                let norm = scale.max(1e-8);
-                let coeff = fetch([c[0] / norm, c[1] / norm, c[2] / norm]);
-                max = max.max(scale);
-                [coeff[0], coeff[1], coeff[2], scale]
+                let cell =
+                    crate::spectral::scaled_coefficients_with([c[0], c[1], c[2]], &mut fetch);
+                max = max.max(cell[3]);
+                cell
             })
             .collect();
         self.spectral = Some(cells);
