@@ -181,6 +181,8 @@ pub struct RenderStats {
     pub engine: EngineRan,
     /// How full the lane engine's lanes were (zero on the scalar engine).
     pub lanes: LaneStats,
+    /// `bdpt`: the share of samples that traced a light subpath.
+    pub light_paths: Option<f32>,
 }
 
 impl RenderStats {
@@ -405,7 +407,8 @@ pub fn render_with(
             return Ok(out);
         }
         Integrator::Bdpt(b) => {
-            let mut out = render_bdpt(scene, b, settings, &pool, progress);
+            let b = b.resolved(scene, settings.seed, &pool);
+            let mut out = render_bdpt(scene, &b, settings, &pool, progress);
             out.stats.engine = engine;
             return Ok(out);
         }
@@ -577,6 +580,227 @@ struct BdptRow {
     stats: PathStats,
 }
 
+/// The shares of samples tracing a light subpath that `bdpt`'s pilot chooses among.
+pub const LIGHT_PATH_SHARES: [f32; 7] = [1.0, 0.5, 0.25, 0.125, 0.0625, 0.03125, 0.015625];
+
+/// The cost of evaluating one connection s ≥ 2 (its BSDFs and MIS weight), in rays: the
+/// pilot's cost model is rays + this × connections (calibrated on the Cornell box, see
+/// docs/bdpt.md).
+pub const CONNECTION_COST: f64 = 0.4;
+
+/// What a pilot render of `bdpt` adds up (all samples tracing both subpaths): for each
+/// share c of [`LIGHT_PATH_SHARES`], the sum over pixel samples of the second moment the
+/// sample would have had with share c — its contributions re-weighted with c, the light
+/// side's (s ≥ 2) traced with probability c and divided by it, so that in expectation over
+/// that choice |X_cam|² + 2 X_cam·X_light + (|X_light|² + Σ |splat|²) / c (summed over
+/// channels; splats land in other pixels, so their cross terms are left out); and the
+/// work of each side.
+#[derive(Clone, Copy, Debug, Default)]
+pub struct PilotSums {
+    pub moments: [f64; LIGHT_PATH_SHARES.len()],
+    pub work: crate::integrator::bdpt::Work,
+}
+
+/// One pilot sample's contributions at one candidate share: the camera-side strategies'
+/// and the light side's (t ≥ 2) radiance, and the light-tracing splats' squares.
+#[derive(Clone, Copy, Default)]
+struct PilotSample {
+    camera: crate::spectrum::Spectrum,
+    light: crate::spectrum::Spectrum,
+    splats: f64,
+}
+
+/// The pilot's dot product over the channels (RGB mode: the fourth lane is a copy of green;
+/// spectral mode: the four wavelengths stand for the three channels).
+fn dot(mode: Mode, a: crate::spectrum::Spectrum, b: crate::spectrum::Spectrum) -> f64 {
+    match mode {
+        Mode::Rgb => a.truncate().dot(b.truncate()) as f64,
+        Mode::Spectral => 0.75 * a.dot(b) as f64,
+    }
+}
+
+impl PilotSums {
+    fn add(&mut self, o: &PilotSums) {
+        for (a, b) in self.moments.iter_mut().zip(o.moments) {
+            *a += b;
+        }
+        self.work.camera += o.work.camera;
+        self.work.light += o.work.light;
+        self.work.connections += o.work.connections;
+    }
+}
+
+/// The pilot's choice: the share, and per candidate share its modelled cost per sample (in
+/// rays) and image variance per sample (summed over pixels and channels).
+#[derive(Clone, Debug)]
+pub struct LightPathChoice {
+    pub share: f32,
+    pub cost: Vec<f64>,
+    pub variance: Vec<f64>,
+}
+
+/// Chooses the share of samples that trace a light subpath for `bdpt` on `scene` by a pilot
+/// render (efficiency-aware MIS, after Grittmann, Yazici, Georgiev and Slusallek 2022): a
+/// few samples per pixel with every sample tracing both subpaths (seed derived from `seed`,
+/// so that every part and resumption of a render chooses the same), from which, for each
+/// candidate share c, the image variance per sample is estimated (each pilot sample's
+/// contributions re-weighted for c: [`PilotSums`]; per pixel, the second moment less the
+/// squared mean, both from that pixel's samples), and the cost per sample as camera-side
+/// rays + c × (light-side rays + connections × [`CONNECTION_COST`]). The share with the
+/// least cost × variance wins; 1 when the pilot saw no variance. Deterministic: each row
+/// is one work item, and rows are summed in order.
+pub fn choose_light_paths(
+    scene: &Scene,
+    bdpt: &crate::integrator::Bdpt,
+    seed: u64,
+    pool: &rayon::ThreadPool,
+) -> LightPathChoice {
+    const K: usize = LIGHT_PATH_SHARES.len();
+    let b = scene.sample_border as i64;
+    let (w, h) = (scene.width as i64, scene.height as i64);
+    let pixels = ((w + 2 * b) * (h + 2 * b)) as usize;
+    let n = (PILOT_SAMPLES.div_ceil(pixels.max(1)) as u64).clamp(4, 64);
+    let pilot = crate::integrator::Bdpt {
+        light_paths: Some(1.0),
+        ..bdpt.clone()
+    };
+    let sampler = scene.sampler;
+    let inv_res = Vec2::new(1.0 / w as f32, 1.0 / h as f32);
+    let rows: Vec<PilotSums> = pool.install(|| {
+        (-b..h + b)
+            .into_par_iter()
+            .map_init(crate::integrator::bdpt::Scratch::default, |scratch, y| {
+                let mut row = PilotSums::default();
+                let work = scratch.work;
+                let mut stats = PathStats::default();
+                let mut splats = Vec::new();
+                for x in -b..w + b {
+                    let (pixel, size) = scene.sample_key(x, y);
+                    // Per candidate: Σ second moments, Σ Y, Σ |Y|² (Y the camera-side
+                    // radiance with the light side always traced) over the pixel's samples.
+                    let mut second = [0.0f64; K];
+                    let mut sum_y = [crate::spectrum::Spectrum::ZERO; K];
+                    let mut sum_y2 = [0.0f64; K];
+                    for s in 0..n {
+                        let mut stream = sampler.stream(seed ^ PILOT_SEED, pixel, size, s);
+                        let pos = Vec2::new(x as f32, y as f32) + stream.next_2d();
+                        let ray = if scene.camera.needs_aperture_sample() {
+                            let u_lens = stream.next_2d();
+                            scene.camera.generate_ray_lens(pos * inv_res, u_lens)
+                        } else {
+                            scene.camera.generate_ray(pos * inv_res)
+                        };
+                        let wl = match scene.mode {
+                            Mode::Rgb => NO_WAVELENGTHS,
+                            Mode::Spectral => {
+                                crate::spectral::sample_wavelengths(stream.next_1d()).0
+                            }
+                        };
+                        let mut parts = [PilotSample::default(); K];
+                        let mut record = |c: &crate::integrator::bdpt::Connection| {
+                            let m = c.mis;
+                            let v = c.value / c.kept;
+                            for (part, &share) in parts.iter_mut().zip(&LIGHT_PATH_SHARES) {
+                                let own = if c.s >= 2 { share } else { 1.0 } as f64;
+                                let wt = own * own
+                                    / (m.camera_side + (share as f64).powi(2) * m.light_side);
+                                let xv = v * wt as f32;
+                                if !wt.is_finite() || !xv.is_finite() {
+                                    continue;
+                                }
+                                if c.t == 1 {
+                                    part.splats += dot(scene.mode, xv, xv);
+                                } else if c.s >= 2 {
+                                    part.light += xv;
+                                } else {
+                                    part.camera += xv;
+                                }
+                            }
+                        };
+                        pilot.sample_recorded(
+                            scene,
+                            ray,
+                            wl,
+                            &mut stream,
+                            scratch,
+                            &mut stats,
+                            &mut splats,
+                            &mut record,
+                        );
+                        splats.clear();
+                        for k in 0..K {
+                            let (p, share) = (&parts[k], LIGHT_PATH_SHARES[k] as f64);
+                            let d = |a, b| dot(scene.mode, a, b);
+                            // In expectation over tracing the light side with probability
+                            // c and dividing it by c.
+                            second[k] += d(p.camera, p.camera)
+                                + 2.0 * d(p.camera, p.light)
+                                + (d(p.light, p.light) + p.splats) / share;
+                            let y = p.camera + p.light;
+                            sum_y[k] += y;
+                            sum_y2[k] += d(y, y);
+                        }
+                    }
+                    // Variance per sample: E[X²] − μ², μ² estimated without bias as
+                    // m² − s²/n (s² the sample variance of Y). Splats land in other pixels,
+                    // each a tiny part of their mean: their squares count whole.
+                    let nf = n as f64;
+                    for k in 0..K {
+                        let m = sum_y[k] / nf as f32;
+                        let m2 = dot(scene.mode, m, m);
+                        let s2 = (sum_y2[k] - nf * m2) / (nf - 1.0);
+                        row.moments[k] += second[k] / nf - (m2 - s2 / nf);
+                    }
+                }
+                row.work = crate::integrator::bdpt::Work {
+                    camera: scratch.work.camera - work.camera,
+                    light: scratch.work.light - work.light,
+                    connections: scratch.work.connections - work.connections,
+                };
+                row
+            })
+            .collect()
+    });
+    let mut sums = PilotSums::default();
+    for r in &rows {
+        sums.add(r);
+    }
+    let samples = n as f64 * pixels as f64;
+    let wk = sums.work;
+    let (camera, light) = (
+        wk.camera as f64 / samples,
+        (wk.light as f64 + CONNECTION_COST * wk.connections as f64) / samples,
+    );
+    let cost: Vec<f64> = LIGHT_PATH_SHARES
+        .iter()
+        .map(|&c| camera + c as f64 * light)
+        .collect();
+    let variance = sums.moments.to_vec();
+    let mut share = 1.0;
+    if variance[0] > 0.0 && variance[0].is_finite() {
+        let mut best = f64::INFINITY;
+        for (k, &c) in LIGHT_PATH_SHARES.iter().enumerate() {
+            let e = cost[k] * variance[k];
+            if e < best {
+                best = e;
+                share = c;
+            }
+        }
+    }
+    LightPathChoice {
+        share,
+        cost,
+        variance,
+    }
+}
+
+/// About how many pixel samples `bdpt`'s pilot draws (at least 4 and at most 64 per
+/// pixel).
+const PILOT_SAMPLES: usize = 1 << 17;
+/// The pilot's seed is the render's with these bits flipped: its samples are not the
+/// render's.
+const PILOT_SEED: u64 = 0x5049_4c4f_5420_5345;
+
 /// Renders a bidirectional path tracer. Each sample index is one pass over all the sampled
 /// pixels: their camera samples and light-tracing splats are added to a
 /// [`crate::film::MixedPass`] in a fixed order (row, pixel), and the pass to the film as one
@@ -604,6 +828,7 @@ fn render_bdpt(
         crate::film::MixedPass::new(scene.width, scene.height, scene.filter, scene.sample_border);
     let mut stats = RenderStats {
         paths: total,
+        light_paths: Some(bdpt.light_share()),
         ..Default::default()
     };
     let items = spp * rows;

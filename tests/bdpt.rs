@@ -213,14 +213,28 @@ fn each_strategy_alone_is_unbiased() {
 /// numbers.
 #[test]
 fn the_strategies_images_add_up_to_the_full_image() {
+    for share in [1.0, 0.5] {
+        strategies_images_add_up(share);
+    }
+}
+
+/// (With light subpaths in a share of the samples, given to every render.)
+fn strategies_images_add_up(share: f32) {
     let depth = 3;
-    let full = cornell("bdpt", depth);
+    let with_share = |mut job: Job| {
+        let Integrator::Bdpt(b) = &mut job.integrator else {
+            panic!("not bdpt")
+        };
+        b.light_paths = Some(share);
+        job
+    };
+    let full = with_share(cornell("bdpt", depth));
     let render = |job: &Job| render_scene(job, 4, SEED, None).film;
     let whole = render(&full);
     let mut sum = vec![[0.0f64; 3]; whole.sum.len()];
     for n in 3..=(depth + 1) as u32 {
         for s in 0..n {
-            let mut job = cornell("bdpt", depth);
+            let mut job = with_share(cornell("bdpt", depth));
             let Integrator::Bdpt(b) = &mut job.integrator else {
                 panic!("not bdpt")
             };
@@ -239,7 +253,7 @@ fn the_strategies_images_add_up_to_the_full_image() {
         for c in 0..3 {
             assert!(
                 (a[c] - b[c]).abs() <= 1e-6 * b[c].abs().max(1e-3),
-                "pixel {i}: strategies {} vs {}",
+                "share {share}, pixel {i}: strategies {} vs {}",
                 a[c],
                 b[c]
             );
@@ -306,11 +320,17 @@ fn hidden_emitters_are_passed_through_as_the_path_tracer_does() {
         </scene>"#
         )
     };
+    // Every sample traces a light subpath: the light paths through the hidden emitter are
+    // what this tests (the pilot would trace fewer here).
+    let bdpt = xml("bdpt").replace(
+        r#"<boolean name="hide_emitters" value="true"/>"#,
+        r#"<boolean name="hide_emitters" value="true"/><float name="light_paths" value="1"/>"#,
+    );
     let z_crit = normal_critical_z(sidak(0.01, 3));
     assert_path_and_bdpt_agree(
         "hidden emitters",
         &scene_from_str(&xml("path")),
-        &scene_from_str(&xml("bdpt")),
+        &scene_from_str(&bdpt),
         256,
         z_crit,
         0.01,
@@ -359,6 +379,22 @@ fn an_empty_light_subpath_leaves_next_event_estimation_its_share() {
 /// (whitted-exact: +5% for bdpt).
 #[test]
 fn a_point_lights_caustic_is_the_difference_to_the_path_tracer() {
+    caustic_is_the_difference_to_the_path_tracer("", 256);
+}
+
+/// The same with light subpaths traced in a quarter of the samples only (`light_paths`):
+/// the caustic, which only strategies s ≥ 2 make, is divided by that share and keeps its
+/// brightness; the MIS weights count those strategies with the share.
+#[test]
+fn a_share_of_light_subpaths_keeps_the_caustic() {
+    // (Four times the passes: a quarter of them carry the caustic.)
+    caustic_is_the_difference_to_the_path_tracer(
+        r#"<float name="light_paths" value="0.25"/>"#,
+        1024,
+    );
+}
+
+fn caustic_is_the_difference_to_the_path_tracer(bdpt_params: &str, passes: u64) {
     let xml = |integrator: &str| {
         format!(
             r#"<scene version="3.0.0">
@@ -380,9 +416,12 @@ fn a_point_lights_caustic_is_the_difference_to_the_path_tracer() {
         r#"<integer name="max_depth" value="3"/><integer name="strategy_s" value="3"/>
             <integer name="strategy_t" value="1"/><boolean name="strategy_mis" value="false"/>"#,
     );
-    let passes = 256;
+    let bdpt = xml("bdpt").replace(
+        r#"<integer name="max_depth" value="3"/>"#,
+        &format!(r#"<integer name="max_depth" value="3"/>{bdpt_params}"#),
+    );
     let (p, sp) = mean_and_se(&scene_from_str(&xml("path")), passes, SEED);
-    let (b, sb) = mean_and_se(&scene_from_str(&xml("bdpt")), passes, SEED + 1);
+    let (b, sb) = mean_and_se(&scene_from_str(&bdpt), passes, SEED + 1);
     let (c, sc) = mean_and_se(&scene_from_str(&caustic), passes, SEED + 2);
     let z_crit = normal_critical_z(sidak(0.01, 3));
     for k in 0..3 {
@@ -398,6 +437,58 @@ fn a_point_lights_caustic_is_the_difference_to_the_path_tracer() {
         // The caustic is resolved: more than 8 standard errors of the comparison.
         assert!(c[k] > 8.0 * se, "caustic {} with se {se}", c[k]);
     }
+}
+
+/// With a share of light subpaths, the Cornell box renders the path tracer's image mean
+/// (every strategy re-weighted: the box is lit by s ≤ 1 and s ≥ 2 alike).
+#[test]
+fn a_share_of_light_subpaths_renders_the_path_tracers_image() {
+    let path = cornell("path", 4);
+    let mut bdpt = cornell("bdpt", 4);
+    let Integrator::Bdpt(b) = &mut bdpt.integrator else {
+        panic!("not bdpt")
+    };
+    b.light_paths = Some(0.125);
+    let z_crit = normal_critical_z(sidak(0.01, 3));
+    assert_path_and_bdpt_agree(
+        "Cornell box, 1/8 light subpaths",
+        &path,
+        &bdpt,
+        256,
+        z_crit,
+        0.01,
+    );
+}
+
+/// The pilot that chooses the share of light subpaths (`light_paths` not given): in the
+/// Cornell box, lit directly and diffusely, light subpaths add cost and little else, and it
+/// takes fewer than all; in the room lit through a small opening (scenes/bdpt-opening.xml)
+/// they carry the light, and it takes all. Its choice and its estimates are the same at
+/// any thread count (and so for every part of a render).
+#[test]
+fn the_pilot_takes_light_subpaths_where_they_pay() {
+    use penumbra::render::{choose_light_paths, thread_pool};
+    let bdpt_of = |job: &Job| match &job.integrator {
+        Integrator::Bdpt(b) => b.clone(),
+        _ => panic!("not bdpt"),
+    };
+    let cornell = cornell("bdpt", 8);
+    let opening = Job::load(
+        &repo_path("scenes/bdpt-opening.xml"),
+        &[
+            ("integrator".to_string(), "bdpt".to_string()),
+            ("res".to_string(), "64".to_string()),
+        ],
+    )
+    .expect("scene");
+    let one = thread_pool(Some(1)).expect("pool");
+    let two = thread_pool(Some(2)).expect("pool");
+    let c1 = choose_light_paths(&cornell.scene, &bdpt_of(&cornell), SEED, &one);
+    let c2 = choose_light_paths(&cornell.scene, &bdpt_of(&cornell), SEED, &two);
+    assert_eq!((c1.share, &c1.variance), (c2.share, &c2.variance));
+    assert!(c1.share < 1.0, "Cornell box: {c1:?}");
+    let o = choose_light_paths(&opening.scene, &bdpt_of(&opening), SEED, &two);
+    assert_eq!(o.share, 1.0, "opening: {o:?}");
 }
 
 /// Where the shading normals bend far from the geometric ones (tests/data/ptracer-shading:

@@ -165,7 +165,11 @@ pub(super) fn write_image(o: &ImageOutput) -> Result<()> {
             spp_done,
             stats.seconds,
             stats.engine,
-            lane_summary(&stats.lanes),
+            lane_summary(&stats.lanes)
+                + &stats
+                    .light_paths
+                    .map(|x| format!(" (light subpaths in {:.1}% of samples)", 100.0 * x))
+                    .unwrap_or_default(),
             stats.paths as f64 / secs / 1e6,
             rays_per_s / 1e6,
             mean_len,

@@ -34,15 +34,15 @@ pub(crate) struct RenderArgs {
     #[arg(short = 'D', value_name = "NAME=VALUE")]
     define: Vec<String>,
     /// Render with this integrator instead of the scene's: `path`, `ptracer` (light
-    /// tracing), `sppm` (photon mapping), `whitted` (recursive ray tracing) or `radiosity`
-    /// (with its defaults), with the scene integrator's max_depth, rr_depth and
-    /// hide_emitters.
+    /// tracing), `bdpt` (bidirectional path tracing), `sppm` (photon mapping), `whitted`
+    /// (recursive ray tracing) or `radiosity` (with its defaults), with the scene
+    /// integrator's max_depth, rr_depth and hide_emitters.
     #[arg(long, value_name = "NAME")]
     integrator: Option<String>,
     /// `rgb` (default) renders linear sRGB as Mitsuba's `*_rgb` variants; `spectral` carries
     /// four wavelengths per path and converts them to linear sRGB as Mitsuba's `*_spectral`
-    /// variants (`<spectrum>` values kept as spectra, RGB reflectances upsampled; path and
-    /// direct integrators; no media or volume textures yet).
+    /// variants (`<spectrum>` values kept as spectra, RGB reflectances upsampled; every
+    /// integrator but sppm, whitted and radiosity: docs/spectral.md).
     #[arg(long, value_enum, default_value_t = ModeArg::Rgb)]
     mode: ModeArg,
     /// Render the scene's sensor number N (from 0, in file order) instead of the first, which

@@ -102,6 +102,23 @@ pub struct Bdpt {
     pub strategy: Option<(u32, u32)>,
     /// With `strategy`: weight its contribution by MIS (true) or not.
     pub strategy_mis: bool,
+    /// The share of pixel samples that trace a light subpath (and so the strategies
+    /// s ≥ 2); `None`: chosen for the scene by a pilot render ([`Self::choose_light_paths`]).
+    pub light_paths: Option<f32>,
+    /// The pilot's choices so far, by seed: renders of one integrator with one seed (the
+    /// passes of a progressive render, the parts of one) run the pilot once.
+    pub pilot_choices: std::sync::Arc<std::sync::Mutex<Vec<(u64, f32)>>>,
+}
+
+/// A connection's MIS weight and, for the pilot, the sums of the squared density ratios
+/// (p_{s'} / p_s)² over the strategies s' ≤ 1 (`camera_side`) and s' ≥ 2 (`light_side`),
+/// the strategy itself included: with a share c of samples tracing light subpaths, the
+/// power heuristic's weight is c_s² / (camera_side + c² light_side), c_s = c for s ≥ 2.
+#[derive(Clone, Copy, Debug)]
+pub(crate) struct Mis {
+    pub weight: f32,
+    pub camera_side: f64,
+    pub light_side: f64,
 }
 
 /// What a subpath vertex is.
@@ -177,7 +194,19 @@ pub struct Scratch {
     cam: Subpath,
     light: Subpath,
     /// This sample's connections, MIS-weighted, before their shadow rays.
-    pending: Vec<(Candidate, f32, usize, usize)>,
+    pending: Vec<(Candidate, Mis, usize, usize)>,
+    /// The work done so far, by side (for the pilot's cost model).
+    pub work: Work,
+}
+
+/// Work counts of the two sides of bidirectional samples: rays traced for the camera side
+/// (its subpath and the strategies s ≤ 1) and for the light side (its subpath, the shadow
+/// rays of s ≥ 2), and the connections s ≥ 2 evaluated.
+#[derive(Clone, Copy, Debug, Default)]
+pub struct Work {
+    pub camera: u64,
+    pub light: u64,
+    pub connections: u64,
 }
 
 /// A surface record for a point off any surface (normal `n`, zero when none).
@@ -478,9 +507,47 @@ pub(crate) struct Connection<'a> {
     pub s: usize,
     pub t: usize,
     pub weight: f32,
+    /// The unweighted contribution, the probability its shadow ray was traced with (shadow
+    /// roulette) and the MIS sums.
+    pub value: Spectrum,
+    pub kept: f32,
+    pub mis: Mis,
 }
 
 impl Bdpt {
+    /// The share of samples that trace a light subpath, as this integrator renders (1 until
+    /// a pilot has chosen one).
+    pub fn light_share(&self) -> f32 {
+        self.light_paths.unwrap_or(1.0)
+    }
+
+    /// This integrator with its share of light subpaths chosen for `scene` by the pilot
+    /// render ([`crate::render::choose_light_paths`]) where the scene leaves it open.
+    pub fn resolved(&self, scene: &Scene, seed: u64, pool: &rayon::ThreadPool) -> Bdpt {
+        let mut b = self.clone();
+        if b.strategy.is_some() {
+            // A strategy alone is a debugging image: every sample traces both subpaths,
+            // unless told otherwise.
+            b.light_paths = Some(b.light_share());
+        }
+        if b.light_paths.is_none() {
+            let known = self
+                .pilot_choices
+                .lock()
+                .ok()
+                .and_then(|c| c.iter().find(|(s, _)| *s == seed).map(|(_, x)| *x));
+            let share = known.unwrap_or_else(|| {
+                let share = crate::render::choose_light_paths(scene, self, seed, pool).share;
+                if let Ok(mut c) = self.pilot_choices.lock() {
+                    c.push((seed, share));
+                }
+                share
+            });
+            b.light_paths = Some(share);
+        }
+        b
+    }
+
     /// Longest subpaths: camera max_depth + 1 vertices (s = 0), light max_depth (t = 1).
     fn max_camera_vertices(&self) -> usize {
         (self.max_depth as usize)
@@ -532,8 +599,21 @@ impl Bdpt {
         let margin = film_margin(scene);
         scratch.cam.wl = wl;
         scratch.light.wl = wl;
+        let rays = stats.rays;
         self.camera_subpath(scene, ray, margin, sampler, &mut scratch.cam, stats);
-        self.light_subpath(scene, sampler, &mut scratch.light, stats);
+        scratch.work.camera += stats.rays - rays;
+        let share = self.light_share();
+        // A share of the samples trace a light subpath; the others make only the strategies
+        // s ≤ 1 (the MIS weights count the strategies s ≥ 2 with that share, and their
+        // contributions are divided by it).
+        let traced = share >= 1.0 || sampler.next_1d() < share;
+        let rays = stats.rays;
+        if traced {
+            self.light_subpath(scene, sampler, &mut scratch.light, stats);
+        } else {
+            scratch.light.clear();
+        }
+        scratch.work.light += stats.rays - rays;
         let (cam, light) = (&scratch.cam, &scratch.light);
         let mut l = Spectrum::ZERO;
         let pending = &mut scratch.pending;
@@ -550,13 +630,20 @@ impl Bdpt {
                 let Some(c) = self.connect(scene, cam, light, s, t, margin, sampler) else {
                     continue;
                 };
-                let weight = if self.strategy.is_some() && !self.strategy_mis {
-                    1.0
+                let mis = if self.strategy.is_some() && !self.strategy_mis {
+                    Mis {
+                        weight: 1.0,
+                        camera_side: 1.0,
+                        light_side: 0.0,
+                    }
                 } else {
-                    self.mis_weight(scene, cam, light, c.sampled.as_ref(), s, t, margin)
+                    self.mis(scene, cam, light, c.sampled.as_ref(), s, t, margin)
                 };
-                if weight > 0.0 {
-                    pending.push((c, weight, s, t));
+                if s >= 2 {
+                    scratch.work.connections += 1;
+                }
+                if mis.weight > 0.0 {
+                    pending.push((c, mis, s, t));
                 }
             }
         }
@@ -564,14 +651,24 @@ impl Bdpt {
         // roulette of visibility tests): a connection that carries less than a share
         // `SHADOW_RR` of this sample's unoccluded total is tested with probability
         // proportional to what it carries and weighted by the inverse.
+        let inv_share = 1.0 / share;
+        let scaled = |c: &Candidate, w: f32, s: usize| {
+            let v = c.value * w;
+            if s >= 2 {
+                v * inv_share
+            } else {
+                v
+            }
+        };
         let total: f32 = pending
             .iter()
-            .map(|(c, w, _, _)| (c.value * *w).max_element())
+            .map(|(c, mis, s, _)| scaled(c, mis.weight, *s).max_element())
             .sum();
         let threshold = SHADOW_RR * total;
-        for (c, weight, s, t) in pending.iter() {
+        for (c, mis, s, t) in pending.iter() {
             let (s, t) = (*s, *t);
-            let mut value = c.value * *weight;
+            let mut value = scaled(c, mis.weight, s);
+            let mut kept = 1.0;
             if !matches!(c.shadow, Shadow::None) && threshold > 0.0 {
                 let q = (value.max_element() / threshold).min(1.0);
                 if q < 1.0 {
@@ -579,10 +676,18 @@ impl Bdpt {
                         continue;
                     }
                     value /= q;
+                    kept = q;
                 }
             }
             let wanted = self.strategy.is_none_or(|st| st == (s as u32, t as u32));
-            if !wanted || !self.visible(scene, light, s, &c.shadow, stats) {
+            let rays = stats.rays;
+            let visible = wanted && self.visible(scene, light, s, &c.shadow, stats);
+            if s >= 2 {
+                scratch.work.light += stats.rays - rays;
+            } else {
+                scratch.work.camera += stats.rays - rays;
+            }
+            if !visible {
                 continue;
             }
             record(&Connection {
@@ -591,7 +696,10 @@ impl Bdpt {
                 sampled: c.sampled,
                 s,
                 t,
-                weight: *weight,
+                weight: mis.weight,
+                value: c.value,
+                kept,
+                mis: *mis,
             });
             match c.film {
                 Some(film) => splats.push(Splat { film, value }),
@@ -962,6 +1070,7 @@ impl Bdpt {
     /// The power-heuristic MIS weight of strategy (s, t) for the path it made: camera
     /// vertices `cam[..t]` (the lens point `sampled` for t = 1), light vertices `light[..s]`
     /// (the light point `sampled` for s = 1).
+    #[cfg(test)]
     #[allow(clippy::too_many_arguments)]
     pub(crate) fn mis_weight(
         &self,
@@ -973,16 +1082,43 @@ impl Bdpt {
         t: usize,
         margin: DVec2,
     ) -> f32 {
+        self.mis(scene, cam, light, sampled, s, t, margin).weight
+    }
+
+    /// [`Self::mis_weight`] and the balance-heuristic sums the pilot needs
+    /// ([`Mis`]). The weight counts the strategies s' ≥ 2, which use the light subpath, with
+    /// the share of samples that trace one ([`Self::light_share`]): w_s = (c_s p_s)² /
+    /// Σ_{s'} (c_{s'} p_{s'})², c = 1 for s' ≤ 1 (Veach's MIS with sample counts).
+    #[allow(clippy::too_many_arguments)]
+    pub(crate) fn mis(
+        &self,
+        scene: &Scene,
+        cam: &Subpath,
+        light: &Subpath,
+        sampled: Option<&Vertex>,
+        s: usize,
+        t: usize,
+        margin: DVec2,
+    ) -> Mis {
+        let zero = Mis {
+            weight: 0.0,
+            camera_side: 0.0,
+            light_side: 0.0,
+        };
         let n = s + t;
         if n == 2 {
-            return 1.0;
+            return Mis {
+                weight: 1.0,
+                camera_side: 1.0,
+                light_side: 0.0,
+            };
         }
         // Vertex j of the path, from the camera (0) to the light (n − 1): for t = 1 the lens
         // point and for s = 1 the light point drawn for the connection (the light subpath may
         // be empty then).
         let drawn = sampled.filter(|_| s == 1 || t == 1);
         if (s == 1 || t == 1) && drawn.is_none() {
-            return 0.0;
+            return zero;
         }
         let vert = |j: usize| -> &Vertex {
             if j < t {
@@ -1108,8 +1244,20 @@ impl Bdpt {
         // (A density this strategy sampled with cannot be 0, but for rounding.)
         let sampled_positive = end_now > 0.0;
         if !sampled_positive {
-            return 0.0;
+            return zero;
         }
+        // Sample counts: strategies s' >= 2 are drawn in a share of the samples only.
+        let share = self.light_share() as f64;
+        let count = |sp: usize| if sp >= 2 { share } else { 1.0 };
+        let own = count(s);
+        let (mut camera_side, mut light_side) = if s >= 2 { (0.0, 1.0) } else { (1.0, 0.0) };
+        let mut side = |sp: usize, r: f64| {
+            if sp >= 2 {
+                light_side += r * r;
+            } else {
+                camera_side += r * r;
+            }
+        };
         let mut sum = 0.0f64;
         // Strategies with more light vertices: z_{t−1}, z_{t−2}, ... move to the light side.
         let mut chain = 1.0f64;
@@ -1119,12 +1267,14 @@ impl Bdpt {
                 let den = pc(tp);
                 let positive = den > 0.0;
                 if !positive {
-                    return 0.0;
+                    return zero;
                 }
                 chain *= pl(tp) / den;
             }
             let r = chain * end(sp) / end_now;
             if !delta(tp - 1) && !delta(tp) {
+                side(sp, r);
+                let r = r * count(sp) / own;
                 sum += r * r;
             }
         }
@@ -1135,25 +1285,33 @@ impl Bdpt {
             if sp == 0 {
                 let r = chain * pc(n - 1) / end_now;
                 if hittable(scene, vert(n - 1)) {
+                    side(sp, r);
+                    let r = r / own;
                     sum += r * r;
                 }
             } else {
                 let den = pl(j);
                 let positive = den > 0.0;
                 if !positive {
-                    return 0.0;
+                    return zero;
                 }
                 chain *= pc(j) / den;
                 let r = chain * end(sp) / end_now;
                 if !delta(j) && !delta(j + 1) {
+                    side(sp, r);
+                    let r = r * count(sp) / own;
                     sum += r * r;
                 }
             }
         }
-        if sum.is_finite() {
-            (1.0 / (1.0 + sum)) as f32
+        if sum.is_finite() && camera_side.is_finite() && light_side.is_finite() {
+            Mis {
+                weight: (1.0 / (1.0 + sum)) as f32,
+                camera_side,
+                light_side,
+            }
         } else {
-            0.0
+            zero
         }
     }
 }
@@ -1426,15 +1584,18 @@ mod tests {
                 strategies_of.contains(&p.s),
                 "the recorded strategy is not valid"
             );
-            let total: f64 = strategies_of.iter().map(|&sp| density(sp).powi(2)).sum();
-            let want = density(p.s).powi(2) / total;
+            // With sample counts: strategies s' >= 2 are drawn in a share of the samples.
+            let share = bdpt.light_share() as f64;
+            let counted = |sp: usize| density(sp) * if sp >= 2 { share } else { 1.0 };
+            let total: f64 = strategies_of.iter().map(|&sp| counted(sp).powi(2)).sum();
+            let want = counted(p.s).powi(2) / total;
             // The walks' densities come from the directions of rays leaving offset origins
             // (f32), the definition's from the points' differences: on the glossiest lobe
             // here (α = 0.05) they differ by up to ~3e-3 relatively (measured); a wrong
             // weight is off by far more.
             assert!(
                 (p.weight as f64 - want).abs() <= 1e-2 * want.max(1e-3),
-                "n {n}, s {}: weight {} against p_s²/Σp² = {want}",
+                "n {n}, s {}: weight {} against (c_s p_s)²/Σ(c p)² = {want}",
                 p.s,
                 p.weight
             );
@@ -1521,6 +1682,25 @@ mod tests {
         );
         assert!(
             paths > 5000 && strategies > 3 * paths,
+            "{paths} paths, {strategies} strategies"
+        );
+    }
+
+    /// The same room with light subpaths traced in 30% of the samples: the weights count
+    /// the strategies s ≥ 2 with that share (Veach's MIS with sample counts) and still sum
+    /// to one.
+    #[test]
+    fn mis_weights_sum_to_one_with_a_share_of_light_subpaths() {
+        let (paths, strategies) = check_scene(
+            &scene(
+                r#"<integer name="max_depth" value="6"/><float name="light_paths" value="0.3"/>"#,
+                PINHOLE,
+                &room(LIGHTS),
+            ),
+            3000,
+        );
+        assert!(
+            paths > 2000 && strategies > 3 * paths,
             "{paths} paths, {strategies} strategies"
         );
     }

@@ -131,6 +131,7 @@ impl Integrator {
                 hide_emitters,
                 strategy,
                 strategy_mis,
+                light_paths,
             } => {
                 ptracer::check_scene("bdpt", false, &scene.camera, has_media)?;
                 Integrator::Bdpt(Bdpt {
@@ -139,6 +140,13 @@ impl Integrator {
                     hide_emitters,
                     strategy,
                     strategy_mis,
+                    // A strategy rendered alone is a debugging image: every sample traces
+                    // both subpaths.
+                    light_paths: match strategy {
+                        Some(_) => Some(light_paths.unwrap_or(1.0) as f32),
+                        None => light_paths.map(|x| x as f32),
+                    },
+                    pilot_choices: Default::default(),
                 })
             }
             IntegratorDesc::ParticleTracer {

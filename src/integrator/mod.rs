@@ -76,7 +76,16 @@ pub enum Integrator {
 }
 
 impl Integrator {
-    /// The plugin name, as in a scene file (radiosity is penumbra's own).
+    /// This integrator with what a render settles before its first sample settled:
+    /// `bdpt`'s share of light subpaths, where the scene leaves it open (a pilot render,
+    /// [`Bdpt::resolved`]). A progressive render settles it once, before its first pass.
+    pub fn resolved(&self, scene: &Scene, seed: u64, pool: &rayon::ThreadPool) -> Integrator {
+        match self {
+            Integrator::Bdpt(b) => Integrator::Bdpt(b.resolved(scene, seed, pool)),
+            other => other.clone(),
+        }
+    }
+
     /// Whether the integrator renders in spectral mode (`--mode spectral`) yet.
     pub fn supports_spectral(&self) -> bool {
         matches!(

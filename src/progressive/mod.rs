@@ -251,6 +251,8 @@ pub fn render_progressive(
     // exact film adds its passes on one too, with the render's thread count.
     let pool = crate::render::thread_pool(settings.threads)?;
     let sppm_pool = sppm.map(|_| &pool);
+    // (bdpt's pilot, once for all passes: its choice depends on the seed only.)
+    let integrator = job.integrator.resolved(scene, settings.seed, &pool);
     let start = Instant::now();
     let mut last_checkpoint = Instant::now();
     let reason = loop {
@@ -293,13 +295,7 @@ pub fn render_progressive(
                 stats
             }
             _ => {
-                let out = render_with(
-                    scene,
-                    &job.integrator,
-                    job.engine,
-                    &pass_settings,
-                    &|_, _| {},
-                )?;
+                let out = render_with(scene, &integrator, job.engine, &pass_settings, &|_, _| {})?;
                 let exact = &mut progress.exact;
                 pool.install(|| exact.add(&out.film))
                     .map_err(|e| Error::Invalid(e.to_string()))?;
@@ -312,6 +308,7 @@ pub fn render_progressive(
         progress.stats.path += stats.path;
         progress.stats.lanes += stats.lanes;
         progress.stats.engine = stats.engine;
+        progress.stats.light_paths = stats.light_paths;
         progress.stats.nonfinite += stats.nonfinite;
         progress.stats.seconds += stats.seconds;
         if let Some(cp) = &settings.checkpoint {

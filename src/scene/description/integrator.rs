@@ -38,6 +38,9 @@ pub enum IntegratorDesc {
         hide_emitters: bool,
         strategy: Option<(u32, u32)>,
         strategy_mis: bool,
+        /// `light_paths`: the share of pixel samples that trace a light subpath, in (0, 1];
+        /// `None` (not given): chosen by a pilot render.
+        light_paths: Option<f64>,
     },
     /// Stochastic progressive photon mapping (penumbra's own; Mitsuba has none).
     /// `photon_count` 0: one photon per pixel per iteration; `initial_radius` 0: automatic.
@@ -227,6 +230,7 @@ impl IntegratorDesc {
                 hide_emitters,
                 strategy: None,
                 strategy_mis: true,
+                light_paths: None,
             },
             "sppm" => IntegratorDesc::Sppm {
                 max_depth,
@@ -487,6 +491,9 @@ pub(super) fn integrator_desc(o: &Object) -> Result<(IntegratorDesc, bool, Optio
             let strategy_s = p.int("strategy_s", -1)?;
             let strategy_t = p.int("strategy_t", -1)?;
             let strategy_mis = p.boolean("strategy_mis", true)?;
+            let light_paths = p_has(o, "light_paths")
+                .then(|| p.float("light_paths", 1.0))
+                .transpose()?;
             p.finish()?;
             check_depths(o, max_depth, rr_depth)?;
             let bad = |msg: String| Err(Error::scene(&o.location, msg));
@@ -512,6 +519,14 @@ pub(super) fn integrator_desc(o: &Object) -> Result<(IntegratorDesc, bool, Optio
                     ))
                 }
             };
+            if let Some(x) = light_paths {
+                if !(x > 0.0 && x <= 1.0) {
+                    return bad(format!(
+                        "light_paths of {} is the share of samples that trace a light subpath,                          in (0, 1]; got {x}",
+                        describe(o)
+                    ));
+                }
+            }
             if strategy.is_none() && p_has(o, "strategy_mis") {
                 return bad(format!(
                     "strategy_mis of {} needs strategy_s and strategy_t",
@@ -524,6 +539,7 @@ pub(super) fn integrator_desc(o: &Object) -> Result<(IntegratorDesc, bool, Optio
                 hide_emitters,
                 strategy,
                 strategy_mis,
+                light_paths,
             }
         }
         "sppm" => {
