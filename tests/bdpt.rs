@@ -473,6 +473,20 @@ fn the_pilot_takes_light_subpaths_where_they_pay() {
         _ => panic!("not bdpt"),
     };
     let cornell = cornell("bdpt", 8);
+    // (`light_paths` 0 asks for the pilot; the default is 1.)
+    let auto = Job::from_xml_str(
+        &std::fs::read_to_string(repo_path("scenes/cornell-box.xml"))
+            .expect("scene")
+            .replace(
+                r#"<integrator type="path">"#,
+                r#"<integrator type="bdpt"><float name="light_paths" value="0"/>"#,
+            ),
+        &repo_path("scenes/cornell-box.xml"),
+        &[("res".to_string(), "32".to_string())],
+    )
+    .expect("scene");
+    assert_eq!(bdpt_of(&auto).light_paths, None);
+    assert_eq!(bdpt_of(&cornell).light_paths, Some(1.0));
     let opening = Job::load(
         &repo_path("scenes/bdpt-opening.xml"),
         &[

@@ -63,6 +63,11 @@
 //! (as in `path`): light vertices on emitters are not connected to the camera, and the
 //! connections to the camera pass through emitters too; paths of one segment are not drawn.
 //!
+//! **A share of light subpaths** (`light_paths`, default 1): a share c of the samples trace
+//! a light subpath; the strategies s ≥ 2 are then weighted with Veach's MIS with sample
+//! counts (c for them, 1 for s ≤ 1) and divided by c, so every c in (0, 1] gives the same
+//! expected image; 0 lets a pilot render choose c ([`crate::render::choose_light_paths`]).
+//!
 //! Participating media are refused ([`super::ptracer::check_scene`]).
 //!
 //! Debugging (pbrt-v4 writes one image per strategy): the parameters `strategy_s` and
@@ -103,7 +108,8 @@ pub struct Bdpt {
     /// With `strategy`: weight its contribution by MIS (true) or not.
     pub strategy_mis: bool,
     /// The share of pixel samples that trace a light subpath (and so the strategies
-    /// s ≥ 2); `None`: chosen for the scene by a pilot render ([`Self::choose_light_paths`]).
+    /// s ≥ 2); `None` (`light_paths` 0 in the scene): chosen for the scene by a pilot render
+    /// ([`crate::render::choose_light_paths`]).
     pub light_paths: Option<f32>,
     /// The pilot's choices so far, by seed: renders of one integrator with one seed (the
     /// passes of a progressive render, the parts of one) run the pilot once.
