@@ -662,6 +662,7 @@ pub fn choose_light_paths(
     let n = (PILOT_SAMPLES.div_ceil(pixels.max(1)) as u64).clamp(4, 64);
     let pilot = crate::integrator::Bdpt {
         light_paths: Some(1.0),
+        shadow_roulette: false,
         ..bdpt.clone()
     };
     let sampler = scene.sampler;

@@ -460,14 +460,14 @@ fn a_share_of_light_subpaths_renders_the_path_tracers_image() {
     );
 }
 
-/// The pilot that chooses the share of light subpaths (`light_paths` not given): in the
-/// Cornell box, lit directly and diffusely, light subpaths add cost and little else, and it
+/// The pilot that chooses the share of light subpaths (`light_paths` 0): in the Cornell box
+/// (128², as scenes/cornell-box.xml), lit directly and diffusely, light subpaths add cost and little else, and it
 /// takes fewer than all; in the room lit through a small opening (scenes/bdpt-opening.xml)
 /// they carry the light, and it takes all. Its choice and its estimates are the same at
 /// any thread count (and so for every part of a render).
 #[test]
 fn the_pilot_takes_light_subpaths_where_they_pay() {
-    use penumbra::render::{choose_light_paths, thread_pool};
+    use penumbra::render::{choose_light_paths, thread_pool, LIGHT_PATH_SHARES};
     let bdpt_of = |job: &Job| match &job.integrator {
         Integrator::Bdpt(b) => b.clone(),
         _ => panic!("not bdpt"),
@@ -482,7 +482,7 @@ fn the_pilot_takes_light_subpaths_where_they_pay() {
                 r#"<integrator type="bdpt"><float name="light_paths" value="0"/>"#,
             ),
         &repo_path("scenes/cornell-box.xml"),
-        &[("res".to_string(), "32".to_string())],
+        &[("res".to_string(), "128".to_string())],
     )
     .expect("scene");
     assert_eq!(bdpt_of(&auto).light_paths, None);
@@ -497,10 +497,16 @@ fn the_pilot_takes_light_subpaths_where_they_pay() {
     .expect("scene");
     let one = thread_pool(Some(1)).expect("pool");
     let two = thread_pool(Some(2)).expect("pool");
-    let c1 = choose_light_paths(&cornell.scene, &bdpt_of(&cornell), SEED, &one);
-    let c2 = choose_light_paths(&cornell.scene, &bdpt_of(&cornell), SEED, &two);
+    let c1 = choose_light_paths(&auto.scene, &bdpt_of(&auto), SEED, &one);
+    let c2 = choose_light_paths(&auto.scene, &bdpt_of(&auto), SEED, &two);
     assert_eq!((c1.share, &c1.variance), (c2.share, &c2.variance));
     assert!(c1.share < 1.0, "Cornell box: {c1:?}");
+    // The variance it predicts at the smallest share against share 1: 1.06 as measured
+    // from the variance channels of 1024-spp renders (16.7M samples each; docs/bdpt.md),
+    // 1.059 predicted here; a pilot that re-weights contributions whose shadow rays took
+    // their roulette with other weights predicts 1.35 here (2.7 with the CLI's seed).
+    let ratio = c1.variance[LIGHT_PATH_SHARES.len() - 1] / c1.variance[0];
+    assert!(ratio < 1.2, "Cornell box: variance ratio {ratio}: {c1:?}");
     let o = choose_light_paths(&opening.scene, &bdpt_of(&opening), SEED, &two);
     assert_eq!(o.share, 1.0, "opening: {o:?}");
 }

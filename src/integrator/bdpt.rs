@@ -114,6 +114,9 @@ pub struct Bdpt {
     /// The pilot's choices so far, by seed: renders of one integrator with one seed (the
     /// passes of a progressive render, the parts of one) run the pilot once.
     pub pilot_choices: std::sync::Arc<std::sync::Mutex<Vec<(u64, f32)>>>,
+    /// Russian roulette on shadow rays ([`SHADOW_RR`]); off for the pilot, whose
+    /// re-weighted contributions must not carry a roulette played with other weights.
+    pub shadow_roulette: bool,
 }
 
 /// A connection's MIS weight and, for the pilot, the sums of the squared density ratios
@@ -670,7 +673,11 @@ impl Bdpt {
             .iter()
             .map(|(c, mis, s, _)| scaled(c, mis.weight, *s).max_element())
             .sum();
-        let threshold = SHADOW_RR * total;
+        let threshold = if self.shadow_roulette {
+            SHADOW_RR * total
+        } else {
+            0.0
+        };
         for (c, mis, s, t) in pending.iter() {
             let (s, t) = (*s, *t);
             let mut value = scaled(c, mis.weight, s);

@@ -147,6 +147,7 @@ impl Integrator {
                         None => light_paths.map(|x| x as f32),
                     },
                     pilot_choices: Default::default(),
+                    shadow_roulette: true,
                 })
             }
             IntegratorDesc::ParticleTracer {
