@@ -407,7 +407,7 @@ pub fn render_with(
             return Ok(out);
         }
         Integrator::Bdpt(b) => {
-            let b = b.resolved(scene, settings.seed, &pool);
+            let b = b.resolved(scene, settings.seed, settings.spp as u64, &pool);
             let mut out = render_bdpt(scene, &b, settings, &pool, progress);
             out.stats.engine = engine;
             return Ok(out);
@@ -639,6 +639,25 @@ pub struct LightPathChoice {
     pub variance: Vec<f64>,
 }
 
+impl LightPathChoice {
+    /// The share of least cost × variance among those of at least `floor`; 1 when the
+    /// pilot saw no variance.
+    pub fn best(&self, floor: f32) -> f32 {
+        let mut share = 1.0;
+        if self.variance[0] > 0.0 && self.variance[0].is_finite() {
+            let mut best = f64::INFINITY;
+            for (k, &c) in LIGHT_PATH_SHARES.iter().enumerate() {
+                let e = self.cost[k] * self.variance[k];
+                if c >= floor && e < best {
+                    best = e;
+                    share = c;
+                }
+            }
+        }
+        share
+    }
+}
+
 /// Chooses the share of samples that trace a light subpath for `bdpt` on `scene` by a pilot
 /// render (efficiency-aware MIS, after Grittmann, Yazici, Georgiev and Slusallek 2022): a
 /// few samples per pixel with every sample tracing both subpaths (seed derived from `seed`,
@@ -777,22 +796,13 @@ pub fn choose_light_paths(
         .map(|&c| camera + c as f64 * light)
         .collect();
     let variance = sums.moments.to_vec();
-    let mut share = 1.0;
-    if variance[0] > 0.0 && variance[0].is_finite() {
-        let mut best = f64::INFINITY;
-        for (k, &c) in LIGHT_PATH_SHARES.iter().enumerate() {
-            let e = cost[k] * variance[k];
-            if e < best {
-                best = e;
-                share = c;
-            }
-        }
-    }
-    LightPathChoice {
-        share,
+    let mut choice = LightPathChoice {
+        share: 1.0,
         cost,
         variance,
-    }
+    };
+    choice.share = choice.best(0.0);
+    choice
 }
 
 /// About how many pixel samples `bdpt`'s pilot draws (at least 4 and at most 64 per

@@ -473,7 +473,7 @@ fn the_pilot_takes_light_subpaths_where_they_pay() {
         _ => panic!("not bdpt"),
     };
     let cornell = cornell("bdpt", 8);
-    // (`light_paths` 0 asks for the pilot; the default is 1.)
+    // (`light_paths` 0 asks for the pilot, as leaving it out does.)
     let auto = Job::from_xml_str(
         &std::fs::read_to_string(repo_path("scenes/cornell-box.xml"))
             .expect("scene")
@@ -486,7 +486,7 @@ fn the_pilot_takes_light_subpaths_where_they_pay() {
     )
     .expect("scene");
     assert_eq!(bdpt_of(&auto).light_paths, None);
-    assert_eq!(bdpt_of(&cornell).light_paths, Some(1.0));
+    assert_eq!(bdpt_of(&cornell).light_paths, None);
     let opening = Job::load(
         &repo_path("scenes/bdpt-opening.xml"),
         &[
@@ -614,8 +614,12 @@ fn parts_merge_to_the_one_process_render() {
             &|_| {},
         )
         .expect("renders")
-        .0
-        .film;
+        .0;
+        // (The pilot takes light subpaths in a share of the samples, chosen for the whole
+        // render: every part must draw the same ones.)
+        let share = single.stats.light_paths.expect("bdpt");
+        assert!(share < 1.0, "{rel}: share {share}");
+        let single = single.film;
         let mut parts: Vec<_> = (0..count)
             .map(|i| {
                 let plan = PartPlan {

@@ -63,10 +63,11 @@
 //! (as in `path`): light vertices on emitters are not connected to the camera, and the
 //! connections to the camera pass through emitters too; paths of one segment are not drawn.
 //!
-//! **A share of light subpaths** (`light_paths`, default 1): a share c of the samples trace
-//! a light subpath; the strategies s ≥ 2 are then weighted with Veach's MIS with sample
-//! counts (c for them, 1 for s ≤ 1) and divided by c, so every c in (0, 1] gives the same
-//! expected image; 0 lets a pilot render choose c ([`crate::render::choose_light_paths`]).
+//! **A share of light subpaths** (`light_paths`): a share c of the samples trace a light
+//! subpath; the strategies s ≥ 2 are then weighted with Veach's MIS with sample counts (c
+//! for them, 1 for s ≤ 1) and divided by c, so every c in (0, 1] gives the same expected
+//! image. Left out (or 0), a pilot render chooses c ([`crate::render::choose_light_paths`]),
+//! no smaller than [`LIGHT_SUBPATHS_PER_PIXEL`] / spp ([`Bdpt::resolved`]).
 //!
 //! Participating media are refused ([`super::ptracer::check_scene`]).
 //!
@@ -94,6 +95,12 @@ use glam::{DVec2, Vec2, Vec3, Vec4};
 /// traced only with probability in proportion to what it carries (Russian roulette;
 /// measured on the Cornell box: 17.5 → 12.0 rays per sample, per-sample variance +0.8%).
 pub const SHADOW_RR: f32 = 0.1;
+/// The light subpaths a pixel draws on average over a render at least, when the pilot
+/// chooses their share: fewer make a pixel's estimate of the light side, divided by the
+/// share, too heavy-tailed for its own variance to describe (measured: at 16 spp and a
+/// share of 1/4, 1% of the Cornell box's pixel-channels fail Mitsuba's per-pixel test; at
+/// 256 spp and 1/64 none beyond the rule's allowance).
+pub const LIGHT_SUBPATHS_PER_PIXEL: f32 = 16.0;
 pub const MAX_SUBPATH_VERTICES: usize = 1024;
 
 #[derive(Clone, Debug)]
@@ -108,12 +115,12 @@ pub struct Bdpt {
     /// With `strategy`: weight its contribution by MIS (true) or not.
     pub strategy_mis: bool,
     /// The share of pixel samples that trace a light subpath (and so the strategies
-    /// s ≥ 2); `None` (`light_paths` 0 in the scene): chosen for the scene by a pilot render
+    /// s ≥ 2); `None` (`light_paths` left out or 0): chosen for the scene by a pilot render
     /// ([`crate::render::choose_light_paths`]).
     pub light_paths: Option<f32>,
     /// The pilot's choices so far, by seed: renders of one integrator with one seed (the
     /// passes of a progressive render, the parts of one) run the pilot once.
-    pub pilot_choices: std::sync::Arc<std::sync::Mutex<Vec<(u64, f32)>>>,
+    pub pilot_choices: std::sync::Arc<std::sync::Mutex<Vec<(u64, crate::render::LightPathChoice)>>>,
     /// Russian roulette on shadow rays ([`SHADOW_RR`]); off for the pilot, whose
     /// re-weighted contributions must not carry a roulette played with other weights.
     pub shadow_roulette: bool,
@@ -531,8 +538,11 @@ impl Bdpt {
     }
 
     /// This integrator with its share of light subpaths chosen for `scene` by the pilot
-    /// render ([`crate::render::choose_light_paths`]) where the scene leaves it open.
-    pub fn resolved(&self, scene: &Scene, seed: u64, pool: &rayon::ThreadPool) -> Bdpt {
+    /// render ([`crate::render::choose_light_paths`]) where the scene leaves it open, for a
+    /// render of `spp` samples per pixel in all (its parts and resumptions included): at
+    /// least [`LIGHT_SUBPATHS_PER_PIXEL`] / `spp`, so that every pixel draws that many light
+    /// subpaths on average.
+    pub fn resolved(&self, scene: &Scene, seed: u64, spp: u64, pool: &rayon::ThreadPool) -> Bdpt {
         let mut b = self.clone();
         if b.strategy.is_some() {
             // A strategy alone is a debugging image: every sample traces both subpaths,
@@ -540,19 +550,24 @@ impl Bdpt {
             b.light_paths = Some(b.light_share());
         }
         if b.light_paths.is_none() {
+            let floor = LIGHT_SUBPATHS_PER_PIXEL / spp.max(1) as f32;
+            if floor >= 1.0 {
+                b.light_paths = Some(1.0);
+                return b;
+            }
             let known = self
                 .pilot_choices
                 .lock()
                 .ok()
-                .and_then(|c| c.iter().find(|(s, _)| *s == seed).map(|(_, x)| *x));
-            let share = known.unwrap_or_else(|| {
-                let share = crate::render::choose_light_paths(scene, self, seed, pool).share;
+                .and_then(|c| c.iter().find(|(s, _)| *s == seed).map(|(_, x)| x.clone()));
+            let choice = known.unwrap_or_else(|| {
+                let choice = crate::render::choose_light_paths(scene, self, seed, pool);
                 if let Ok(mut c) = self.pilot_choices.lock() {
-                    c.push((seed, share));
+                    c.push((seed, choice.clone()));
                 }
-                share
+                choice
             });
-            b.light_paths = Some(share);
+            b.light_paths = Some(choice.best(floor));
         }
         b
     }

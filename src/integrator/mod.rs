@@ -78,10 +78,17 @@ pub enum Integrator {
 impl Integrator {
     /// This integrator with what a render settles before its first sample settled:
     /// `bdpt`'s share of light subpaths, where the scene leaves it open (a pilot render,
-    /// [`Bdpt::resolved`]). A progressive render settles it once, before its first pass.
-    pub fn resolved(&self, scene: &Scene, seed: u64, pool: &rayon::ThreadPool) -> Integrator {
+    /// [`Bdpt::resolved`]), for a render of `spp` samples per pixel in all. A progressive
+    /// render settles it once, before its first pass.
+    pub fn resolved(
+        &self,
+        scene: &Scene,
+        seed: u64,
+        spp: u64,
+        pool: &rayon::ThreadPool,
+    ) -> Integrator {
         match self {
-            Integrator::Bdpt(b) => Integrator::Bdpt(b.resolved(scene, seed, pool)),
+            Integrator::Bdpt(b) => Integrator::Bdpt(b.resolved(scene, seed, spp, pool)),
             other => other.clone(),
         }
     }

@@ -252,7 +252,9 @@ pub fn render_progressive(
     let pool = crate::render::thread_pool(settings.threads)?;
     let sppm_pool = sppm.map(|_| &pool);
     // (bdpt's pilot, once for all passes: its choice depends on the seed only.)
-    let integrator = job.integrator.resolved(scene, settings.seed, &pool);
+    let integrator = job
+        .integrator
+        .resolved(scene, settings.seed, settings.spp as u64, &pool);
     let start = Instant::now();
     let mut last_checkpoint = Instant::now();
     let reason = loop {

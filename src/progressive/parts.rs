@@ -162,6 +162,10 @@ pub fn render_part_with(
         run.part.exact = c.exact;
     }
     let pool = crate::render::thread_pool(settings.threads)?;
+    // (bdpt's pilot: for the whole plan, so that every part chooses the same.)
+    let integrator = job
+        .integrator
+        .resolved(scene, settings.seed, plan.plan_spp, &pool);
     let mut last_checkpoint = Instant::now();
     let mut checkpointed = run.part.samples;
     let mut at = a + run.part.samples;
@@ -177,7 +181,7 @@ pub fn render_part_with(
         let spp = (pass as u64).min(b - at) as u32;
         let out = render_with(
             scene,
-            &job.integrator,
+            &integrator,
             job.engine,
             &RenderSettings {
                 spp,

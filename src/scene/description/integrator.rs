@@ -38,8 +38,8 @@ pub enum IntegratorDesc {
         hide_emitters: bool,
         strategy: Option<(u32, u32)>,
         strategy_mis: bool,
-        /// `light_paths`: the share of pixel samples that trace a light subpath, in (0, 1]
-        /// (default 1); `None` (given as 0): chosen by a pilot render.
+        /// `light_paths`: the share of pixel samples that trace a light subpath, in (0, 1];
+        /// `None` (left out, or given as 0): chosen by a pilot render.
         light_paths: Option<f64>,
     },
     /// Stochastic progressive photon mapping (penumbra's own; Mitsuba has none).
@@ -230,7 +230,7 @@ impl IntegratorDesc {
                 hide_emitters,
                 strategy: None,
                 strategy_mis: true,
-                light_paths: Some(1.0),
+                light_paths: None,
             },
             "sppm" => IntegratorDesc::Sppm {
                 max_depth,
@@ -492,7 +492,7 @@ pub(super) fn integrator_desc(o: &Object) -> Result<(IntegratorDesc, bool, Optio
             let strategy_t = p.int("strategy_t", -1)?;
             let strategy_mis = p.boolean("strategy_mis", true)?;
             // 0: chosen by the pilot render.
-            let light_paths = Some(p.float("light_paths", 1.0)?).filter(|&x| x != 0.0);
+            let light_paths = Some(p.float("light_paths", 0.0)?).filter(|&x| x != 0.0);
             p.finish()?;
             check_depths(o, max_depth, rr_depth)?;
             let bad = |msg: String| Err(Error::scene(&o.location, msg));
