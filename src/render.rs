@@ -589,12 +589,13 @@ pub const LIGHT_PATH_SHARES: [f32; 7] = [1.0, 0.5, 0.25, 0.125, 0.0625, 0.03125,
 pub const CONNECTION_COST: f64 = 0.4;
 
 /// What a pilot render of `bdpt` adds up (all samples tracing both subpaths): for each
-/// share c of [`LIGHT_PATH_SHARES`], the sum over pixel samples of the second moment the
-/// sample would have had with share c — its contributions re-weighted with c, the light
-/// side's (s ≥ 2) traced with probability c and divided by it, so that in expectation over
-/// that choice |X_cam|² + 2 X_cam·X_light + (|X_light|² + Σ |splat|²) / c (summed over
-/// channels; splats land in other pixels, so their cross terms are left out); and the
-/// work of each side.
+/// share c of [`LIGHT_PATH_SHARES`], the sum over pixels of the variance per sample the
+/// pixel would have with share c — each sample's second moment, its contributions
+/// re-weighted with c and the light side's (s ≥ 2) traced with probability c and divided by
+/// it, so that in expectation over that choice |X_cam|² + 2 X_cam·X_light + (|X_light|² +
+/// Σ |splat|²) / c (summed over channels; splats land in other pixels, so their cross terms
+/// are left out), averaged over the pixel's samples, less the squared mean; and the work of
+/// each side.
 #[derive(Clone, Copy, Debug, Default)]
 pub struct PilotSums {
     pub moments: [f64; LIGHT_PATH_SHARES.len()],
