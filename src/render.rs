@@ -686,7 +686,13 @@ pub fn choose_light_paths(
         ..bdpt.clone()
     };
     let sampler = scene.sampler;
-    let inv_res = Vec2::new(1.0 / w as f32, 1.0 / h as f32);
+    let settings = RenderSettings {
+        spp: n as u32,
+        first_sample: 0,
+        seed: seed ^ PILOT_SEED,
+        threads: None,
+        sampler: None,
+    };
     let rows: Vec<PilotSums> = pool.install(|| {
         (-b..h + b)
             .into_par_iter()
@@ -696,21 +702,14 @@ pub fn choose_light_paths(
                 let mut stats = PathStats::default();
                 let mut splats = Vec::new();
                 for x in -b..w + b {
-                    let (pixel, size) = scene.sample_key(x, y);
                     // Per candidate: Σ second moments, Σ Y, Σ |Y|² (Y the camera-side
                     // radiance with the light side always traced) over the pixel's samples.
                     let mut second = [0.0f64; K];
                     let mut sum_y = [crate::spectrum::Spectrum::ZERO; K];
                     let mut sum_y2 = [0.0f64; K];
                     for s in 0..n {
-                        let mut stream = sampler.stream(seed ^ PILOT_SEED, pixel, size, s);
-                        let pos = Vec2::new(x as f32, y as f32) + stream.next_2d();
-                        let ray = if scene.camera.needs_aperture_sample() {
-                            let u_lens = stream.next_2d();
-                            scene.camera.generate_ray_lens(pos * inv_res, u_lens)
-                        } else {
-                            scene.camera.generate_ray(pos * inv_res)
-                        };
+                        let (mut stream, _, ray) =
+                            camera_sample(scene, sampler, &settings, (x, y), s);
                         let wl = match scene.mode {
                             Mode::Rgb => NO_WAVELENGTHS,
                             Mode::Spectral => {
@@ -831,7 +830,6 @@ fn render_bdpt(
     let (cols, rows) = ((w + 2 * b) as usize, (h + 2 * b) as usize);
     let spp = settings.spp as usize;
     let sampler = settings.sampler.unwrap_or(scene.sampler);
-    let inv_res = Vec2::new(1.0 / w as f32, 1.0 / h as f32);
     let res = Vec2::new(w as f32, h as f32);
     let total = (cols * rows) as u64 * settings.spp as u64;
     let start = Instant::now();
@@ -854,21 +852,9 @@ fn render_bdpt(
                     let (s, y) = (k / rows, (k % rows) as i64 - b);
                     let mut row = BdptRow::default();
                     for x in -b..w + b {
-                        let (pixel, size) = scene.sample_key(x, y);
-                        let mut stream = sampler.stream(
-                            settings.seed,
-                            pixel,
-                            size,
-                            settings.first_sample + s as u64,
-                        );
                         // The camera ray as the path tracer draws it.
-                        let pos = Vec2::new(x as f32, y as f32) + stream.next_2d();
-                        let ray = if scene.camera.needs_aperture_sample() {
-                            let u_lens = stream.next_2d();
-                            scene.camera.generate_ray_lens(pos * inv_res, u_lens)
-                        } else {
-                            scene.camera.generate_ray(pos * inv_res)
-                        };
+                        let (mut stream, pos, ray) =
+                            camera_sample(scene, sampler, settings, (x, y), s as u64);
                         let l = match scene.mode {
                             Mode::Rgb => bdpt.sample(
                                 scene,

@@ -137,6 +137,20 @@ pub(crate) struct Mis {
     pub light_side: f64,
 }
 
+impl Mis {
+    const ZERO: Mis = Mis {
+        weight: 0.0,
+        camera_side: 0.0,
+        light_side: 0.0,
+    };
+    /// A strategy alone (the only one that makes its paths, or unweighted).
+    const ALONE: Mis = Mis {
+        weight: 1.0,
+        camera_side: 1.0,
+        light_side: 0.0,
+    };
+}
+
 /// What a subpath vertex is.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 enum Kind {
@@ -655,11 +669,7 @@ impl Bdpt {
                     continue;
                 };
                 let mis = if self.strategy.is_some() && !self.strategy_mis {
-                    Mis {
-                        weight: 1.0,
-                        camera_side: 1.0,
-                        light_side: 0.0,
-                    }
+                    Mis::ALONE
                 } else {
                     self.mis(scene, cam, light, c.sampled.as_ref(), s, t, margin)
                 };
@@ -1095,27 +1105,11 @@ impl Bdpt {
         }
     }
 
-    /// The power-heuristic MIS weight of strategy (s, t) for the path it made: camera
-    /// vertices `cam[..t]` (the lens point `sampled` for t = 1), light vertices `light[..s]`
-    /// (the light point `sampled` for s = 1).
-    #[cfg(test)]
-    #[allow(clippy::too_many_arguments)]
-    pub(crate) fn mis_weight(
-        &self,
-        scene: &Scene,
-        cam: &Subpath,
-        light: &Subpath,
-        sampled: Option<&Vertex>,
-        s: usize,
-        t: usize,
-        margin: DVec2,
-    ) -> f32 {
-        self.mis(scene, cam, light, sampled, s, t, margin).weight
-    }
-
-    /// [`Self::mis_weight`] and the balance-heuristic sums the pilot needs
-    /// ([`Mis`]). The weight counts the strategies s' ≥ 2, which use the light subpath, with
-    /// the share of samples that trace one ([`Self::light_share`]): w_s = (c_s p_s)² /
+    /// The power-heuristic MIS weight of strategy (s, t) for the path it made (camera
+    /// vertices `cam[..t]`, the lens point `sampled` for t = 1; light vertices `light[..s]`,
+    /// the light point `sampled` for s = 1), and the sums of squared density ratios the pilot
+    /// needs ([`Mis`]). The weight counts the strategies s' ≥ 2, which use the light subpath,
+    /// with the share of samples that trace one ([`Self::light_share`]): w_s = (c_s p_s)² /
     /// Σ_{s'} (c_{s'} p_{s'})², c = 1 for s' ≤ 1 (Veach's MIS with sample counts).
     #[allow(clippy::too_many_arguments)]
     pub(crate) fn mis(
@@ -1128,18 +1122,10 @@ impl Bdpt {
         t: usize,
         margin: DVec2,
     ) -> Mis {
-        let zero = Mis {
-            weight: 0.0,
-            camera_side: 0.0,
-            light_side: 0.0,
-        };
+        let zero = Mis::ZERO;
         let n = s + t;
         if n == 2 {
-            return Mis {
-                weight: 1.0,
-                camera_side: 1.0,
-                light_side: 0.0,
-            };
+            return Mis::ALONE;
         }
         // Vertex j of the path, from the camera (0) to the light (n − 1): for t = 1 the lens
         // point and for s = 1 the light point drawn for the connection (the light subpath may
@@ -1630,7 +1616,9 @@ mod tests {
             let mut sum = 0.0f64;
             for &sp in &strategies_of {
                 let (cam, light, sampled) = split(p, sp, &pc, &pl, emit);
-                let w = bdpt.mis_weight(scene, &cam, &light, sampled.as_ref(), sp, n - sp, margin);
+                let w = bdpt
+                    .mis(scene, &cam, &light, sampled.as_ref(), sp, n - sp, margin)
+                    .weight;
                 assert!(w.is_finite(), "n {n}, s' {sp}: weight {w}");
                 sum += w as f64;
             }
