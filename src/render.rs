@@ -408,8 +408,16 @@ pub fn render_with(
         }
         Integrator::Bdpt(b) => {
             let b = b.resolved(scene, settings.seed, settings.spp as u64, &pool);
-            let mut out = render_bdpt(scene, &b, settings, &pool, progress);
+            if b.light_share() > 0.0 {
+                let mut out = render_bdpt(scene, &b, settings, &pool, progress);
+                out.stats.engine = engine;
+                return Ok(out);
+            }
+            // No light subpaths: the strategies s ≤ 1 alone, the path tracer's estimator.
+            let path = Integrator::Path(b.path_tracer());
+            let mut out = render_with(scene, &path, Engine::Scalar, settings, progress)?;
             out.stats.engine = engine;
+            out.stats.light_paths = Some(0.0);
             return Ok(out);
         }
         _ => {}
@@ -580,8 +588,11 @@ struct BdptRow {
     stats: PathStats,
 }
 
-/// The shares of samples tracing a light subpath that `bdpt`'s pilot chooses among.
-pub const LIGHT_PATH_SHARES: [f32; 7] = [1.0, 0.5, 0.25, 0.125, 0.0625, 0.03125, 0.015625];
+/// The shares of samples tracing a light subpath that `bdpt`'s pilot chooses among. The
+/// last, 0, only where every path has a camera-side strategy
+/// ([`crate::integrator::Bdpt::camera_side_complete`]): no light subpaths at all, and so
+/// the path tracer's estimator.
+pub const LIGHT_PATH_SHARES: [f32; 8] = [1.0, 0.5, 0.25, 0.125, 0.0625, 0.03125, 0.015625, 0.0];
 
 /// The cost of evaluating one connection s ≥ 2 (its BSDFs and MIS weight), in rays: the
 /// pilot's cost model is rays + this × connections (calibrated on the Cornell box, see
@@ -638,18 +649,27 @@ pub struct LightPathChoice {
     pub share: f32,
     pub cost: Vec<f64>,
     pub variance: Vec<f64>,
+    /// Whether share 0 is a candidate: every path of the scene has a camera-side strategy
+    /// ([`crate::integrator::Bdpt::camera_side_complete`]).
+    pub camera_side_complete: bool,
 }
 
 impl LightPathChoice {
-    /// The share of least cost × variance among those of at least `floor`; 1 when the
-    /// pilot saw no variance.
+    /// The share of least cost × variance among those of at least `floor` (and 0, where
+    /// the camera side is complete: no light subpath, so no pixel short of them); 1 when
+    /// the pilot saw no variance.
     pub fn best(&self, floor: f32) -> f32 {
         let mut share = 1.0;
         if self.variance[0] > 0.0 && self.variance[0].is_finite() {
             let mut best = f64::INFINITY;
             for (k, &c) in LIGHT_PATH_SHARES.iter().enumerate() {
                 let e = self.cost[k] * self.variance[k];
-                if c >= floor && e < best {
+                let allowed = if c == 0.0 {
+                    self.camera_side_complete
+                } else {
+                    c >= floor
+                };
+                if allowed && e < best {
                     best = e;
                     share = c;
                 }
@@ -753,9 +773,13 @@ pub fn choose_light_paths(
                             let d = |a, b| dot(scene.mode, a, b);
                             // In expectation over tracing the light side with probability
                             // c and dividing it by c.
-                            second[k] += d(p.camera, p.camera)
-                                + 2.0 * d(p.camera, p.light)
-                                + (d(p.light, p.light) + p.splats) / share;
+                            // (At share 0 the light side is never traced: nothing.)
+                            let light = if share > 0.0 {
+                                (d(p.light, p.light) + p.splats) / share
+                            } else {
+                                0.0
+                            };
+                            second[k] += d(p.camera, p.camera) + 2.0 * d(p.camera, p.light) + light;
                             let y = p.camera + p.light;
                             sum_y[k] += y;
                             sum_y2[k] += d(y, y);
@@ -800,6 +824,7 @@ pub fn choose_light_paths(
         share: 1.0,
         cost,
         variance,
+        camera_side_complete: bdpt.camera_side_complete(scene),
     };
     choice.share = choice.best(0.0);
     choice

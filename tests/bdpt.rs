@@ -461,8 +461,9 @@ fn a_share_of_light_subpaths_renders_the_path_tracers_image() {
 }
 
 /// The pilot that chooses the share of light subpaths (`light_paths` 0): in the Cornell box
-/// (128², as scenes/cornell-box.xml), lit directly and diffusely, light subpaths add cost and little else, and it
-/// takes fewer than all; in the room lit through a small opening (scenes/bdpt-opening.xml)
+/// (128², as scenes/cornell-box.xml), lit directly and diffusely by an area light, light
+/// subpaths add cost and little else, and it takes none (every path there has a
+/// camera-side strategy); in the room lit through a small opening (scenes/bdpt-opening.xml)
 /// they carry the light, and it takes all. Its choice and its estimates are the same at
 /// any thread count (and so for every part of a render).
 #[test]
@@ -500,15 +501,105 @@ fn the_pilot_takes_light_subpaths_where_they_pay() {
     let c1 = choose_light_paths(&auto.scene, &bdpt_of(&auto), SEED, &one);
     let c2 = choose_light_paths(&auto.scene, &bdpt_of(&auto), SEED, &two);
     assert_eq!((c1.share, &c1.variance), (c2.share, &c2.variance));
-    assert!(c1.share < 1.0, "Cornell box: {c1:?}");
-    // The variance it predicts at the smallest share against share 1: 1.06 as measured
-    // from the variance channels of 1024-spp renders (16.7M samples each; docs/bdpt.md),
-    // 1.059 predicted here; a pilot that re-weights contributions whose shadow rays took
-    // their roulette with other weights predicts 1.35 here (2.7 with the CLI's seed).
-    let ratio = c1.variance[LIGHT_PATH_SHARES.len() - 1] / c1.variance[0];
+    assert!(c1.camera_side_complete, "Cornell box: {c1:?}");
+    assert_eq!(c1.share, 0.0, "Cornell box: {c1:?}");
+    // The variance it predicts at share 1/64 against share 1: 1.06 as measured from the
+    // variance channels of 1024-spp renders (16.7M samples each; docs/bdpt.md), 1.059
+    // predicted here; a pilot that re-weights contributions whose shadow rays took their
+    // roulette with other weights predicts 1.35 here (2.7 with the CLI's seed).
+    let at = |c: f32| {
+        LIGHT_PATH_SHARES
+            .iter()
+            .position(|&x| x == c)
+            .expect("share")
+    };
+    let ratio = c1.variance[at(1.0 / 64.0)] / c1.variance[at(1.0)];
     assert!(ratio < 1.2, "Cornell box: variance ratio {ratio}: {c1:?}");
     let o = choose_light_paths(&opening.scene, &bdpt_of(&opening), SEED, &two);
     assert_eq!(o.share, 1.0, "opening: {o:?}");
+}
+
+/// Share 0 (no light subpaths) only where every path has a camera-side strategy: not in a
+/// scene lit by a point light, whose caustic (the light through a mirror sphere onto a
+/// diffuse floor) only light subpaths make, however cheap and quiet share 0 looks there.
+#[test]
+fn the_pilot_keeps_light_subpaths_where_only_they_make_some_paths() {
+    use penumbra::render::{choose_light_paths, thread_pool, LightPathChoice, LIGHT_PATH_SHARES};
+    let k = LIGHT_PATH_SHARES.len();
+    assert_eq!(LIGHT_PATH_SHARES[k - 1], 0.0);
+    // Share 0 the cheapest and the quietest: chosen only where the camera side is complete.
+    let choice = |complete: bool| LightPathChoice {
+        share: 1.0,
+        cost: (0..k).map(|i| (k - i) as f64).collect(),
+        variance: vec![1.0; k],
+        camera_side_complete: complete,
+    };
+    assert_eq!(choice(true).best(0.5), 0.0);
+    assert_eq!(choice(false).best(0.0), 1.0 / 64.0);
+    assert_eq!(choice(false).best(0.5), 0.5);
+    // The caustic scene of the tests above, with the pilot's choice.
+    let xml = r#"<scene version="3.0.0">
+        <integrator type="bdpt"><integer name="max_depth" value="3"/></integrator>
+        <sensor type="perspective"><float name="fov" value="45"/>
+            <transform name="to_world"><lookat origin="0, 2.4, 4.2" target="0, 0.4, 0" up="0, 1, 0"/></transform>
+            <film type="hdrfilm"><integer name="width" value="24"/><integer name="height" value="24"/>
+                <rfilter type="box"/></film></sensor>
+        <shape type="rectangle"><transform name="to_world"><scale value="4"/><rotate x="1" angle="-90"/></transform>
+            <bsdf type="diffuse"/></shape>
+        <shape type="sphere"><point name="center" x="-0.9" y="0.6" z="0"/><float name="radius" value="0.6"/>
+            <bsdf type="conductor"><string name="material" value="Al"/></bsdf></shape>
+        <emitter type="point"><point name="position" x="-1.5" y="3" z="2"/><rgb name="intensity" value="12"/></emitter>
+    </scene>"#;
+    let job = scene_from_str(xml);
+    let Integrator::Bdpt(b) = &job.integrator else {
+        panic!("not bdpt")
+    };
+    assert!(!b.camera_side_complete(&job.scene));
+    let c = choose_light_paths(&job.scene, b, SEED, &thread_pool(Some(2)).expect("pool"));
+    assert!(!c.camera_side_complete && c.share > 0.0, "{c:?}");
+    let resolved = b.resolved(&job.scene, SEED, 4096, &thread_pool(Some(2)).expect("pool"));
+    assert!(resolved.light_share() > 0.0);
+}
+
+/// Without light subpaths (share 0, as the pilot chooses in the Cornell box at 128²) bdpt
+/// renders with the path tracer, its depths and roulette and hidden emitters: the same
+/// image, bit for bit.
+#[test]
+fn without_light_subpaths_bdpt_renders_the_path_tracers_image() {
+    let settings = RenderSettings {
+        spp: 64,
+        first_sample: 0,
+        seed: SEED,
+        threads: None,
+        sampler: None,
+    };
+    let with = |integrator: &str| {
+        let xml = std::fs::read_to_string(repo_path("scenes/cornell-box.xml")).expect("scene");
+        let xml = xml.replace(
+            r#"<integrator type="path">"#,
+            &format!(
+                r#"<integrator type="{integrator}"><boolean name="hide_emitters" value="true"/>
+                    <integer name="rr_depth" value="2"/>"#
+            ),
+        );
+        let defines = [
+            ("res".to_string(), "32".to_string()),
+            ("max_depth".to_string(), "4".to_string()),
+        ];
+        let mut job =
+            Job::from_xml_str(&xml, &repo_path("scenes/cornell-box.xml"), &defines).expect("scene");
+        if let Integrator::Bdpt(b) = &mut job.integrator {
+            b.light_paths = Some(0.0);
+        }
+        job.render(&settings, &|_, _| {}).expect("renders")
+    };
+    let (path, bdpt) = (with("path"), with("bdpt"));
+    assert_eq!(bdpt.stats.light_paths, Some(0.0));
+    assert!(path.film.sum.iter().any(|p| p[0] > 0.0), "black");
+    assert!(
+        path.film.sum == bdpt.film.sum && path.film.sum_sq == bdpt.film.sum_sq,
+        "another image"
+    );
 }
 
 /// Where the shading normals bend far from the geometric ones (tests/data/ptracer-shading:
@@ -578,7 +669,9 @@ fn deterministic_at_any_thread_count() {
 
 /// `--part`s of a bdpt render merge to the render made in one process, bit for bit, with a
 /// wide filter (splats across pixels) and with Mitsuba's crop window and sample border
-/// (camera samples and splats beyond the window).
+/// (camera samples and splats beyond the window). Each scene gets a point light too, so
+/// that the pilot may not leave light subpaths out (share 0 is for scenes whose every path
+/// has a camera-side strategy) and every part must draw the same share of them.
 #[test]
 fn parts_merge_to_the_one_process_render() {
     use penumbra::progressive::{
@@ -594,7 +687,15 @@ fn parts_merge_to_the_one_process_render() {
             .iter()
             .map(|(k, v)| (k.to_string(), v.to_string()))
             .collect();
-        let mut desc = Scene::load_description(&repo_path(rel), &defines).expect("loads");
+        let xml = std::fs::read_to_string(repo_path(rel))
+            .expect("scene")
+            .replace(
+                "</scene>",
+                r#"<emitter type="point"><point name="position" x="0" y="0.5" z="0"/>
+                    <rgb name="intensity" value="0.5"/></emitter></scene>"#,
+            );
+        let mut desc =
+            Scene::description_from_xml_str(&xml, &repo_path(rel), &defines).expect("loads");
         desc.use_integrator("bdpt").expect("bdpt");
         let hash = scene_hash(&desc);
         let job = Job::build(&desc).expect("builds");
@@ -618,7 +719,7 @@ fn parts_merge_to_the_one_process_render() {
         // (The pilot takes light subpaths in a share of the samples, chosen for the whole
         // render: every part must draw the same ones.)
         let share = single.stats.light_paths.expect("bdpt");
-        assert!(share < 1.0, "{rel}: share {share}");
+        assert!(share > 0.0 && share < 1.0, "{rel}: share {share}");
         let single = single.film;
         let mut parts: Vec<_> = (0..count)
             .map(|i| {

@@ -168,7 +168,13 @@ pub(super) fn write_image(o: &ImageOutput) -> Result<()> {
             lane_summary(&stats.lanes)
                 + &stats
                     .light_paths
-                    .map(|x| format!(" (light subpaths in {:.1}% of samples)", 100.0 * x))
+                    .map(|x| {
+                        if x == 0.0 {
+                            " (no light subpaths: the path tracer's estimator)".to_string()
+                        } else {
+                            format!(" (light subpaths in {:.1}% of samples)", 100.0 * x)
+                        }
+                    })
                     .unwrap_or_default(),
             stats.paths as f64 / secs / 1e6,
             rays_per_s / 1e6,

@@ -67,7 +67,10 @@
 //! subpath; the strategies s ≥ 2 are then weighted with Veach's MIS with sample counts (c
 //! for them, 1 for s ≤ 1) and divided by c, so every c in (0, 1] gives the same expected
 //! image. Left out (or 0), a pilot render chooses c ([`crate::render::choose_light_paths`]),
-//! no smaller than [`LIGHT_SUBPATHS_PER_PIXEL`] / spp ([`Bdpt::resolved`]).
+//! no smaller than [`LIGHT_SUBPATHS_PER_PIXEL`] / spp ([`Bdpt::resolved`]), or c = 0 where
+//! every path has a camera-side strategy ([`Bdpt::camera_side_complete`]): then only the
+//! strategies s ≤ 1 remain, which is the path tracer's estimator, and the path tracer
+//! renders ([`Bdpt::path_tracer`]).
 //!
 //! Participating media are refused ([`super::ptracer::check_scene`]).
 //!
@@ -76,6 +79,7 @@
 //! full image; the images of all strategies add up to the full one) or, with `strategy_mis`
 //! false, unweighted (its own estimate of all the light carried by paths of s + t vertices).
 
+use super::path::PathIntegrator;
 use super::ptracer::{adjoint_correction, ray_to_camera, sees_camera, Splat};
 use super::{emission_at, pass_through_emitters, PathStats, MAX_SKIPPED_EMITTERS};
 use crate::emitter::{DirectionSample, Emitter};
@@ -584,6 +588,30 @@ impl Bdpt {
             b.light_paths = Some(choice.best(floor));
         }
         b
+    }
+
+    /// Whether every path of `scene` that carries light has a strategy s ≤ 1 (the camera
+    /// subpath meets an emitter, or next-event estimation draws it), so that the estimator
+    /// without light subpaths (share 0) is unbiased too: true when no emitter is a Dirac
+    /// delta (point, spot, projector, directional). A delta light cannot be met by a camera
+    /// subpath, and where the vertex next to it scatters through a delta lobe (a point light
+    /// seen through glass) next-event estimation cannot draw it either; only light subpaths
+    /// make those paths. Area emitters and emitters at infinity are met by camera subpaths,
+    /// which sample every direction their BSDFs scatter to.
+    pub fn camera_side_complete(&self, scene: &Scene) -> bool {
+        self.strategy.is_none() && !scene.emitters.iter().any(Emitter::is_delta)
+    }
+
+    /// The estimator without light subpaths (share 0): the strategies s ≤ 1, weighted by
+    /// the power heuristic between them, are the path tracer's (a camera path meeting an
+    /// emitter, and next-event estimation, with the same roulette and depth), so a share of
+    /// 0 renders with [`PathIntegrator`] itself.
+    pub fn path_tracer(&self) -> PathIntegrator {
+        PathIntegrator {
+            max_depth: self.max_depth,
+            rr_depth: self.rr_depth,
+            hide_emitters: self.hide_emitters,
+        }
     }
 
     /// Longest subpaths: camera max_depth + 1 vertices (s = 0), light max_depth (t = 1).
