@@ -393,6 +393,7 @@ pub fn render_with(
     settings: &RenderSettings,
     progress: &(dyn Fn(u64, u64) + Sync),
 ) -> Result<RenderOutput> {
+    let requested = engine;
     let engine = engine.resolve(integrator)?;
     let pool = thread_pool(settings.threads)?;
     match integrator {
@@ -413,10 +414,10 @@ pub fn render_with(
                 out.stats.engine = engine;
                 return Ok(out);
             }
-            // No light subpaths: the strategies s ≤ 1 alone, the path tracer's estimator.
+            // No light subpaths: the strategies s ≤ 1 alone, the path tracer's estimator
+            // (on the engine asked for: the lane engine covers the path tracer).
             let path = Integrator::Path(b.path_tracer());
-            let mut out = render_with(scene, &path, Engine::Scalar, settings, progress)?;
-            out.stats.engine = engine;
+            let mut out = render_with(scene, &path, requested, settings, progress)?;
             out.stats.light_paths = Some(0.0);
             return Ok(out);
         }

@@ -563,7 +563,7 @@ fn the_pilot_keeps_light_subpaths_where_only_they_make_some_paths() {
 
 /// Without light subpaths (share 0, as the pilot chooses in the Cornell box at 128²) bdpt
 /// renders with the path tracer, its depths and roulette and hidden emitters: the same
-/// image, bit for bit.
+/// image, bit for bit; asked for the lane engine, on it (which covers the path tracer).
 #[test]
 fn without_light_subpaths_bdpt_renders_the_path_tracers_image() {
     let settings = RenderSettings {
@@ -573,7 +573,7 @@ fn without_light_subpaths_bdpt_renders_the_path_tracers_image() {
         threads: None,
         sampler: None,
     };
-    let with = |integrator: &str| {
+    let with = |integrator: &str, engine: penumbra::render::Engine| {
         let xml = std::fs::read_to_string(repo_path("scenes/cornell-box.xml")).expect("scene");
         let xml = xml.replace(
             r#"<integrator type="path">"#,
@@ -591,15 +591,26 @@ fn without_light_subpaths_bdpt_renders_the_path_tracers_image() {
         if let Integrator::Bdpt(b) = &mut job.integrator {
             b.light_paths = Some(0.0);
         }
+        job.engine = engine;
         job.render(&settings, &|_, _| {}).expect("renders")
     };
-    let (path, bdpt) = (with("path"), with("bdpt"));
-    assert_eq!(bdpt.stats.light_paths, Some(0.0));
+    use penumbra::render::{Engine, EngineRan};
+    let path = with("path", Engine::Scalar);
     assert!(path.film.sum.iter().any(|p| p[0] > 0.0), "black");
-    assert!(
-        path.film.sum == bdpt.film.sum && path.film.sum_sq == bdpt.film.sum_sq,
-        "another image"
-    );
+    for engine in [Engine::Scalar, Engine::Lanes(None)] {
+        let bdpt = with("bdpt", engine);
+        assert_eq!(bdpt.stats.light_paths, Some(0.0));
+        assert_eq!(
+            matches!(bdpt.stats.engine, EngineRan::Lanes(_)),
+            engine != Engine::Scalar,
+            "{:?}",
+            bdpt.stats.engine
+        );
+        assert!(
+            path.film.sum == bdpt.film.sum && path.film.sum_sq == bdpt.film.sum_sq,
+            "another image ({engine:?})"
+        );
+    }
 }
 
 /// Where the shading normals bend far from the geometric ones (tests/data/ptracer-shading:

@@ -54,8 +54,9 @@ pub(crate) struct RenderArgs {
     threads: Option<usize>,
     /// The engine that renders camera paths: `scalar` (one path at a time) or `lanes` (16
     /// paths side by side in SIMD lanes, AVX-512 or AVX2 detected at run time; the same
-    /// image bit for bit). The lane engine covers the path integrator; other integrators
-    /// run on the scalar engine, and the summary line says which ran. Default scalar: at
+    /// image bit for bit). The lane engine covers the path integrator (and `bdpt` where
+    /// its pilot takes no light subpaths); other integrators run on the scalar engine, and
+    /// the summary line says which ran. Default scalar: at
     /// this stage the lane engine is slower.
     #[arg(long, value_enum, default_value_t = EngineArg::Scalar)]
     engine: EngineArg,
