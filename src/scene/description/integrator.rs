@@ -521,7 +521,8 @@ pub(super) fn integrator_desc(o: &Object) -> Result<(IntegratorDesc, bool, Optio
             if let Some(x) = light_paths {
                 if !(x > 0.0 && x <= 1.0) {
                     return bad(format!(
-                        "light_paths of {} is the share of samples that trace a light subpath,                          in (0, 1], or 0 for a pilot render's choice; got {x}",
+                        "light_paths of {} is the share of samples that trace a light subpath, \
+                         in (0, 1], or 0 for a pilot render's choice; got {x}",
                         describe(o)
                     ));
                 }
