@@ -394,23 +394,27 @@ fn a_share_of_light_subpaths_keeps_the_caustic() {
     );
 }
 
+/// A diffuse floor, a mirror sphere and a point light above them, 24 × 24, max_depth 3:
+/// the light's caustic on the floor is made by light subpaths alone (s ≥ 2).
+fn caustic_scene(integrator: &str) -> String {
+    format!(
+        r#"<scene version="3.0.0">
+        <integrator type="{integrator}"><integer name="max_depth" value="3"/></integrator>
+        <sensor type="perspective"><float name="fov" value="45"/>
+            <transform name="to_world"><lookat origin="0, 2.4, 4.2" target="0, 0.4, 0" up="0, 1, 0"/></transform>
+            <film type="hdrfilm"><integer name="width" value="24"/><integer name="height" value="24"/>
+                <rfilter type="box"/></film></sensor>
+        <shape type="rectangle"><transform name="to_world"><scale value="4"/><rotate x="1" angle="-90"/></transform>
+            <bsdf type="diffuse"/></shape>
+        <shape type="sphere"><point name="center" x="-0.9" y="0.6" z="0"/><float name="radius" value="0.6"/>
+            <bsdf type="conductor"><string name="material" value="Al"/></bsdf></shape>
+        <emitter type="point"><point name="position" x="-1.5" y="3" z="2"/><rgb name="intensity" value="12"/></emitter>
+    </scene>"#
+    )
+}
+
 fn caustic_is_the_difference_to_the_path_tracer(bdpt_params: &str, passes: u64) {
-    let xml = |integrator: &str| {
-        format!(
-            r#"<scene version="3.0.0">
-            <integrator type="{integrator}"><integer name="max_depth" value="3"/></integrator>
-            <sensor type="perspective"><float name="fov" value="45"/>
-                <transform name="to_world"><lookat origin="0, 2.4, 4.2" target="0, 0.4, 0" up="0, 1, 0"/></transform>
-                <film type="hdrfilm"><integer name="width" value="24"/><integer name="height" value="24"/>
-                    <rfilter type="box"/></film></sensor>
-            <shape type="rectangle"><transform name="to_world"><scale value="4"/><rotate x="1" angle="-90"/></transform>
-                <bsdf type="diffuse"/></shape>
-            <shape type="sphere"><point name="center" x="-0.9" y="0.6" z="0"/><float name="radius" value="0.6"/>
-                <bsdf type="conductor"><string name="material" value="Al"/></bsdf></shape>
-            <emitter type="point"><point name="position" x="-1.5" y="3" z="2"/><rgb name="intensity" value="12"/></emitter>
-        </scene>"#
-        )
-    };
+    let xml = caustic_scene;
     let caustic = xml("bdpt").replace(
         r#"<integer name="max_depth" value="3"/>"#,
         r#"<integer name="max_depth" value="3"/><integer name="strategy_s" value="3"/>
@@ -538,26 +542,15 @@ fn the_pilot_keeps_light_subpaths_where_only_they_make_some_paths() {
     assert_eq!(choice(false).best(0.0), 1.0 / 64.0);
     assert_eq!(choice(false).best(0.5), 0.5);
     // The caustic scene of the tests above, with the pilot's choice.
-    let xml = r#"<scene version="3.0.0">
-        <integrator type="bdpt"><integer name="max_depth" value="3"/></integrator>
-        <sensor type="perspective"><float name="fov" value="45"/>
-            <transform name="to_world"><lookat origin="0, 2.4, 4.2" target="0, 0.4, 0" up="0, 1, 0"/></transform>
-            <film type="hdrfilm"><integer name="width" value="24"/><integer name="height" value="24"/>
-                <rfilter type="box"/></film></sensor>
-        <shape type="rectangle"><transform name="to_world"><scale value="4"/><rotate x="1" angle="-90"/></transform>
-            <bsdf type="diffuse"/></shape>
-        <shape type="sphere"><point name="center" x="-0.9" y="0.6" z="0"/><float name="radius" value="0.6"/>
-            <bsdf type="conductor"><string name="material" value="Al"/></bsdf></shape>
-        <emitter type="point"><point name="position" x="-1.5" y="3" z="2"/><rgb name="intensity" value="12"/></emitter>
-    </scene>"#;
-    let job = scene_from_str(xml);
+    let job = scene_from_str(&caustic_scene("bdpt"));
     let Integrator::Bdpt(b) = &job.integrator else {
         panic!("not bdpt")
     };
     assert!(!b.camera_side_complete(&job.scene));
-    let c = choose_light_paths(&job.scene, b, SEED, &thread_pool(Some(2)).expect("pool"));
+    let pool = thread_pool(Some(2)).expect("pool");
+    let c = choose_light_paths(&job.scene, b, SEED, &pool);
     assert!(!c.camera_side_complete && c.share > 0.0, "{c:?}");
-    let resolved = b.resolved(&job.scene, SEED, 4096, &thread_pool(Some(2)).expect("pool"));
+    let resolved = b.resolved(&job.scene, SEED, 4096, &pool);
     assert!(resolved.light_share() > 0.0);
 }
 
