@@ -5,6 +5,8 @@ import json
 import sys
 from pathlib import Path
 
+import pytest
+
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 import summarize  # noqa: E402
 
@@ -137,3 +139,14 @@ def test_sample_is_a_seeded_uniform_draw_in_listing_order():
         counts[sample.draw(ten, 1, seed)[0]] += 1
     chi2 = sum((c - 200) ** 2 / 200 for c in counts.values())
     assert chi2 < 27.88, counts
+
+
+def test_the_parts_of_a_sample_cover_it_once():
+    drawn = [f"m{i}" for i in range(400)]
+    parts = [sample.part(drawn, f"{k}/8") for k in range(1, 9)]
+    assert sorted(sum(parts, []), key=drawn.index) == drawn
+    assert [len(p) for p in parts] == [50] * 8
+    assert sample.part(drawn, "1/1") == drawn
+    for bad in ("0/8", "9/8", "a/8", "3"):
+        with pytest.raises(SystemExit):
+            sample.part(drawn, bad)
