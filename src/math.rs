@@ -5,6 +5,7 @@
 
 mod elementary;
 pub use elementary::{acos, acosf, atan2, atan2f, exp, expf, ln, lnf, sin_cos, sin_cosf};
+pub(crate) use elementary::{sin_cosf_f64, F64Ops, SIN_COS_LIMIT_F32};
 
 /// The complementary error function (Chebyshev fit, relative error < 1.2e-7 everywhere).
 pub fn erfc(x: f64) -> f64 {

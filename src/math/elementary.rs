@@ -187,15 +187,6 @@ fn reduce_half_pi(x: f64) -> (f64, f64, i64) {
     (r, delta, ki & 3)
 }
 
-/// x = k·π/2 + r for x from an f32: two parts of π/2, enough for a result rounded to f32
-/// (r's absolute error is below |k|·2⁻⁸⁶ plus half an ulp of r; the `sin_cosf_ulp` sweep up
-/// to 2¹⁹ checks what that leaves).
-#[inline(always)]
-fn reduce_half_pi_f32(x: f64) -> (f64, i64) {
-    let (k, ki) = round_to_int(x * FRAC_2_PI);
-    ((x - k * PIO2_1) - k * PIO2_2T, ki & 3)
-}
-
 /// Places the reduced sine and cosine in the quadrant: (sin, cos) of r + n·π/2.
 #[inline(always)]
 fn quadrant(s: f64, c: f64, n: i64) -> (f64, f64) {
@@ -248,16 +239,136 @@ pub fn sin_cos(x: f64) -> (f64, f64) {
 /// of a tie. NaN and ±∞ give NaN; sin(±0) = ±0; subnormal x gives (x, 1).
 #[inline]
 pub fn sin_cosf(x: f32) -> (f32, f32) {
-    if x.abs() > SIN_COS_LIMIT as f32 {
+    if x.abs() > SIN_COS_LIMIT_F32 {
         return x.sin_cos();
     }
-    let (r, n) = reduce_half_pi_f32(x as f64);
-    let z = r * r;
-    // r·(1 + z·S) rather than r + r·z·S: the same to 2⁻⁵¹, and sin(±0) = ±0
-    let s = r * (1.0 + z * horner(z, &SIN_F32));
-    let c = (1.0 - 0.5 * z) + (z * z) * horner(z, &COS_F32);
-    let (s, c) = quadrant(s, c, n);
+    let (s, c) = sin_cosf_f64(x as f64);
     (s as f32, c as f32)
+}
+
+/// [`sin_cosf`] above this |x| hands off to `std`.
+pub(crate) const SIN_COS_LIMIT_F32: f32 = SIN_COS_LIMIT as f32;
+
+/// f64 values side by side (a scalar `f64` or a SIMD register of them) with what
+/// [`sin_cosf_f64`] does to them: the lane backends evaluate [`sin_cosf`] in f64 lanes by
+/// the same operations, hence to the same bits.
+pub(crate) trait F64Ops: Copy {
+    /// i64 lanes (two's complement, wrapping).
+    type I: Copy;
+    fn splat(x: f64) -> Self;
+    fn add(self, o: Self) -> Self;
+    fn sub(self, o: Self) -> Self;
+    fn mul(self, o: Self) -> Self;
+    fn to_bits(self) -> Self::I;
+    fn from_bits(i: Self::I) -> Self;
+    fn splat_i(x: i64) -> Self::I;
+    fn i_sub(a: Self::I, b: Self::I) -> Self::I;
+    fn i_add(a: Self::I, b: Self::I) -> Self::I;
+    fn i_and(a: Self::I, b: Self::I) -> Self::I;
+    fn i_xor(a: Self::I, b: Self::I) -> Self::I;
+    /// `a << 62`.
+    fn i_shl62(a: Self::I) -> Self::I;
+    /// `if n & 1 == 1 { a } else { b }` lane by lane.
+    fn select_odd(n: Self::I, a: Self, b: Self) -> Self;
+}
+
+impl F64Ops for f64 {
+    type I = i64;
+    #[inline(always)]
+    fn splat(x: f64) -> f64 {
+        x
+    }
+    #[inline(always)]
+    fn add(self, o: f64) -> f64 {
+        self + o
+    }
+    #[inline(always)]
+    fn sub(self, o: f64) -> f64 {
+        self - o
+    }
+    #[inline(always)]
+    fn mul(self, o: f64) -> f64 {
+        self * o
+    }
+    #[inline(always)]
+    fn to_bits(self) -> i64 {
+        f64::to_bits(self) as i64
+    }
+    #[inline(always)]
+    fn from_bits(i: i64) -> f64 {
+        f64::from_bits(i as u64)
+    }
+    #[inline(always)]
+    fn splat_i(x: i64) -> i64 {
+        x
+    }
+    #[inline(always)]
+    fn i_sub(a: i64, b: i64) -> i64 {
+        a.wrapping_sub(b)
+    }
+    #[inline(always)]
+    fn i_add(a: i64, b: i64) -> i64 {
+        a.wrapping_add(b)
+    }
+    #[inline(always)]
+    fn i_and(a: i64, b: i64) -> i64 {
+        a & b
+    }
+    #[inline(always)]
+    fn i_xor(a: i64, b: i64) -> i64 {
+        a ^ b
+    }
+    #[inline(always)]
+    fn i_shl62(a: i64) -> i64 {
+        a << 62
+    }
+    #[inline(always)]
+    fn select_odd(n: i64, a: f64, b: f64) -> f64 {
+        if n & 1 == 1 {
+            a
+        } else {
+            b
+        }
+    }
+}
+
+/// [`sin_cosf`]'s evaluation in f64 for |x| ≤ [`SIN_COS_LIMIT`] (x an f32 widened): the
+/// reduction x = k·π/2 + r with two parts of π/2, enough for a result rounded to f32 (r's
+/// absolute error is below |k|·2⁻⁸⁶ plus half an ulp of r; the `sin_cosf_ulp` sweep up to
+/// 2¹⁹ checks what that leaves), the two polynomials and [`quadrant`]'s rule, written once
+/// over [`F64Ops`] so that the scalar function and the lane backends share it.
+#[inline(always)]
+pub(crate) fn sin_cosf_f64<D: F64Ops>(x: D) -> (D, D) {
+    let horner = |z: D, c: &[f64; 4]| {
+        let mut p = D::splat(c[0]);
+        for &ci in &c[1..] {
+            p = p.mul(z).add(D::splat(ci));
+        }
+        p
+    };
+    // the reduction, with round_to_int's rounding
+    let v = x.mul(D::splat(FRAC_2_PI));
+    let t = v.add(D::splat(ROUND_SHIFT));
+    let ki = D::i_sub(t.to_bits(), D::splat_i(ROUND_SHIFT.to_bits() as i64));
+    let k = t.sub(D::splat(ROUND_SHIFT));
+    let r = x.sub(k.mul(D::splat(PIO2_1))).sub(k.mul(D::splat(PIO2_2T)));
+    let n = D::i_and(ki, D::splat_i(3));
+    let z = r.mul(r);
+    // r·(1 + z·S) rather than r + r·z·S: the same to 2⁻⁵¹, and sin(±0) = ±0
+    let s = r.mul(D::splat(1.0).add(z.mul(horner(z, &SIN_F32))));
+    let c = D::splat(1.0)
+        .sub(D::splat(0.5).mul(z))
+        .add(z.mul(z).mul(horner(z, &COS_F32)));
+    // quadrant: n odd swaps; the sign bits are bit 1 of n and of n + 1
+    let s1 = D::select_odd(n, c, s);
+    let c1 = D::select_odd(n, s, c);
+    let sign = D::splat_i(i64::MIN);
+    let s_sign = D::i_and(D::i_shl62(n), sign);
+    let c_sign = D::i_and(D::i_shl62(D::i_add(n, D::splat_i(1))), sign);
+    (
+        D::from_bits(D::i_xor(s1.to_bits(), s_sign)),
+        D::from_bits(D::i_xor(c1.to_bits(), c_sign)),
+    )
 }
 
 /// eˣ in f64.

@@ -837,4 +837,92 @@ impl Lanes for Avx2 {
             )
         }))
     }
+    #[inline(always)]
+    fn sin_cos(self, x: F32x8x2) -> (F32x8x2, F32x8x2) {
+        // SAFETY (all intrinsics here): the token proves AVX2.
+        let quarters: [F64x4; 4] = std::array::from_fn(|q| unsafe {
+            let h = x.0[q / 2];
+            F64x4(_mm256_cvtps_pd(if q % 2 == 0 {
+                _mm256_castps256_ps128(h)
+            } else {
+                _mm256_extractf128_ps::<1>(h)
+            }))
+        });
+        let sc = quarters.map(crate::math::sin_cosf_f64);
+        let join = |a: F64x4, b: F64x4| unsafe {
+            _mm256_insertf128_ps::<1>(
+                _mm256_castps128_ps256(_mm256_cvtpd_ps(a.0)),
+                _mm256_cvtpd_ps(b.0),
+            )
+        };
+        let mut s = F32x8x2([join(sc[0].0, sc[1].0), join(sc[2].0, sc[3].0)]);
+        let mut c = F32x8x2([join(sc[0].1, sc[1].1), join(sc[2].1, sc[3].1)]);
+        super::sin_cos_beyond_limit(self, x, &mut s, &mut c);
+        (s, c)
+    }
+}
+
+/// Four f64 lanes, for [`crate::math::sin_cosf_f64`].
+#[derive(Clone, Copy)]
+struct F64x4(__m256d);
+
+// SAFETY (every method): only called from `Avx2::sin_cos`, which runs where AVX2 exists.
+impl crate::math::F64Ops for F64x4 {
+    type I = __m256i;
+    #[inline(always)]
+    fn splat(x: f64) -> Self {
+        F64x4(unsafe { _mm256_set1_pd(x) })
+    }
+    #[inline(always)]
+    fn add(self, o: Self) -> Self {
+        F64x4(unsafe { _mm256_add_pd(self.0, o.0) })
+    }
+    #[inline(always)]
+    fn sub(self, o: Self) -> Self {
+        F64x4(unsafe { _mm256_sub_pd(self.0, o.0) })
+    }
+    #[inline(always)]
+    fn mul(self, o: Self) -> Self {
+        F64x4(unsafe { _mm256_mul_pd(self.0, o.0) })
+    }
+    #[inline(always)]
+    fn to_bits(self) -> __m256i {
+        unsafe { _mm256_castpd_si256(self.0) }
+    }
+    #[inline(always)]
+    fn from_bits(i: __m256i) -> Self {
+        F64x4(unsafe { _mm256_castsi256_pd(i) })
+    }
+    #[inline(always)]
+    fn splat_i(x: i64) -> __m256i {
+        unsafe { _mm256_set1_epi64x(x) }
+    }
+    #[inline(always)]
+    fn i_sub(a: __m256i, b: __m256i) -> __m256i {
+        unsafe { _mm256_sub_epi64(a, b) }
+    }
+    #[inline(always)]
+    fn i_add(a: __m256i, b: __m256i) -> __m256i {
+        unsafe { _mm256_add_epi64(a, b) }
+    }
+    #[inline(always)]
+    fn i_and(a: __m256i, b: __m256i) -> __m256i {
+        unsafe { _mm256_and_si256(a, b) }
+    }
+    #[inline(always)]
+    fn i_xor(a: __m256i, b: __m256i) -> __m256i {
+        unsafe { _mm256_xor_si256(a, b) }
+    }
+    #[inline(always)]
+    fn i_shl62(a: __m256i) -> __m256i {
+        unsafe { _mm256_slli_epi64::<62>(a) }
+    }
+    #[inline(always)]
+    fn select_odd(n: __m256i, a: Self, b: Self) -> Self {
+        unsafe {
+            let one = _mm256_set1_epi64x(1);
+            let odd = _mm256_cmpeq_epi64(_mm256_and_si256(n, one), one);
+            F64x4(_mm256_blendv_pd(b.0, a.0, _mm256_castsi256_pd(odd)))
+        }
+    }
 }

@@ -605,4 +605,89 @@ impl Lanes for Avx512 {
             )
         })
     }
+    #[inline(always)]
+    fn sin_cos(self, x: F32x16) -> (F32x16, F32x16) {
+        // SAFETY (all intrinsics here): the token proves AVX-512 F and DQ.
+        let halves = unsafe {
+            [
+                _mm512_cvtps_pd(_mm512_castps512_ps256(x.0)),
+                _mm512_cvtps_pd(_mm512_extractf32x8_ps::<1>(x.0)),
+            ]
+        };
+        let [(s0, c0), (s1, c1)] = halves.map(|h| crate::math::sin_cosf_f64(F64x8(h)));
+        let join = |a: F64x8, b: F64x8| unsafe {
+            F32x16(_mm512_insertf32x8::<1>(
+                _mm512_castps256_ps512(_mm512_cvtpd_ps(a.0)),
+                _mm512_cvtpd_ps(b.0),
+            ))
+        };
+        let (mut s, mut c) = (join(s0, s1), join(c0, c1));
+        super::sin_cos_beyond_limit(self, x, &mut s, &mut c);
+        (s, c)
+    }
+}
+
+/// Eight f64 lanes, for [`crate::math::sin_cosf_f64`].
+#[derive(Clone, Copy)]
+struct F64x8(__m512d);
+
+// SAFETY (every method): only called from `Avx512::sin_cos`, which runs where AVX-512 F and
+// DQ exist.
+impl crate::math::F64Ops for F64x8 {
+    type I = __m512i;
+    #[inline(always)]
+    fn splat(x: f64) -> Self {
+        F64x8(unsafe { _mm512_set1_pd(x) })
+    }
+    #[inline(always)]
+    fn add(self, o: Self) -> Self {
+        F64x8(unsafe { _mm512_add_pd(self.0, o.0) })
+    }
+    #[inline(always)]
+    fn sub(self, o: Self) -> Self {
+        F64x8(unsafe { _mm512_sub_pd(self.0, o.0) })
+    }
+    #[inline(always)]
+    fn mul(self, o: Self) -> Self {
+        F64x8(unsafe { _mm512_mul_pd(self.0, o.0) })
+    }
+    #[inline(always)]
+    fn to_bits(self) -> __m512i {
+        unsafe { _mm512_castpd_si512(self.0) }
+    }
+    #[inline(always)]
+    fn from_bits(i: __m512i) -> Self {
+        F64x8(unsafe { _mm512_castsi512_pd(i) })
+    }
+    #[inline(always)]
+    fn splat_i(x: i64) -> __m512i {
+        unsafe { _mm512_set1_epi64(x) }
+    }
+    #[inline(always)]
+    fn i_sub(a: __m512i, b: __m512i) -> __m512i {
+        unsafe { _mm512_sub_epi64(a, b) }
+    }
+    #[inline(always)]
+    fn i_add(a: __m512i, b: __m512i) -> __m512i {
+        unsafe { _mm512_add_epi64(a, b) }
+    }
+    #[inline(always)]
+    fn i_and(a: __m512i, b: __m512i) -> __m512i {
+        unsafe { _mm512_and_si512(a, b) }
+    }
+    #[inline(always)]
+    fn i_xor(a: __m512i, b: __m512i) -> __m512i {
+        unsafe { _mm512_xor_si512(a, b) }
+    }
+    #[inline(always)]
+    fn i_shl62(a: __m512i) -> __m512i {
+        unsafe { _mm512_slli_epi64::<62>(a) }
+    }
+    #[inline(always)]
+    fn select_odd(n: __m512i, a: Self, b: Self) -> Self {
+        unsafe {
+            let odd = _mm512_test_epi64_mask(n, _mm512_set1_epi64(1));
+            F64x8(_mm512_mask_blend_pd(odd, b.0, a.0))
+        }
+    }
 }

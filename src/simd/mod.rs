@@ -272,6 +272,35 @@ pub trait Lanes: Copy + Debug + Send + Sync + 'static {
     fn gather(self, table: &[f32], idx: Self::U32, m: Self::M) -> Self::F;
     /// [`Lanes::gather`] of u32.
     fn gather_u32(self, table: &[u32], idx: Self::U32, m: Self::M) -> Self::U32;
+
+    /// [`crate::math::sin_cosf`] lane by lane, the same bits: (sin x, cos x). The x86
+    /// backends evaluate it in f64 lanes ([`crate::math::sin_cosf_f64`]); the others, and
+    /// lanes above its hand-off to `std`, call the scalar function.
+    #[inline(always)]
+    fn sin_cos(self, x: Self::F) -> (Self::F, Self::F) {
+        let (mut s, mut c) = (x, x);
+        for i in 0..Self::WIDTH {
+            let (si, ci) = crate::math::sin_cosf(x.lane(i));
+            s.set_lane(i, si);
+            c.set_lane(i, ci);
+        }
+        (s, c)
+    }
+}
+
+/// The lanes of `x` above [`crate::math::sin_cosf`]'s hand-off to `std`, set in `(s, c)`
+/// from the scalar function (never, for the renderer's angles).
+#[inline(always)]
+fn sin_cos_beyond_limit<L: Lanes>(l: L, x: L::F, s: &mut L::F, c: &mut L::F) {
+    let far = x.abs().cmp_gt(l.splat(crate::math::SIN_COS_LIMIT_F32));
+    let mut bits = far.bits();
+    while bits != 0 {
+        let i = bits.trailing_zeros() as usize;
+        bits &= bits - 1;
+        let (si, ci) = crate::math::sin_cosf(x.lane(i));
+        s.set_lane(i, si);
+        c.set_lane(i, ci);
+    }
 }
 
 /// The mask of indices a gather may read: below `len` and below 2³¹.

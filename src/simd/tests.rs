@@ -957,3 +957,76 @@ fn backend_names_round_trip() {
     }
     assert_eq!(Backend::from_name("avx"), None);
 }
+
+/// `Lanes::sin_cos` over `xs` (a multiple of 16 values), lane results as bits.
+struct SinCos<'a>(&'a [f32]);
+
+impl LaneProgram for SinCos<'_> {
+    type Output = Vec<(u32, u32)>;
+    #[inline(always)]
+    fn run<L: Lanes>(self, l: L) -> Vec<(u32, u32)> {
+        let mut out = Vec::with_capacity(self.0.len());
+        for chunk in self.0.chunks(L::WIDTH) {
+            let (s, c) = l.sin_cos(l.load(chunk));
+            out.extend((0..L::WIDTH).map(|i| (s.lane(i).to_bits(), c.lane(i).to_bits())));
+        }
+        out
+    }
+}
+
+#[test]
+fn sin_cos_lanes_give_the_scalar_bits() {
+    // Every 7th f32 of [−2π, 2π] (the renderer's angles), then random bit patterns and the
+    // edges: the hand-off to std at 2¹⁹, quadrant boundaries, ±0, subnormals, ±∞, NaNs.
+    let two_pi = std::f32::consts::TAU;
+    let mut xs: Vec<f32> = Vec::new();
+    let mut x = -two_pi;
+    while x <= two_pi {
+        xs.push(x);
+        for _ in 0..7 {
+            x = x.next_up();
+        }
+    }
+    let mut rng = Pcg32::seed_from_u64(42);
+    xs.extend((0..16 * 4096).map(|_| f32::from_bits(gen_f32(&mut rng))));
+    let limit = crate::math::SIN_COS_LIMIT_F32;
+    for v in [
+        limit,
+        limit.next_up(),
+        limit.next_down(),
+        1e30,
+        3.0e5,
+        1e-45,
+        1e-40,
+        0.0,
+    ] {
+        xs.extend([v, -v]);
+    }
+    for k in -64..=64 {
+        let q = k as f32 * std::f32::consts::FRAC_PI_2;
+        xs.extend([q, q.next_up(), q.next_down()]);
+    }
+    xs.extend([f32::INFINITY, f32::NEG_INFINITY, f32::NAN, -f32::NAN]);
+    xs.resize(xs.len().next_multiple_of(16), 0.5);
+    let want: Vec<(f32, f32)> = xs.iter().map(|&x| crate::math::sin_cosf(x)).collect();
+    let same = |a: f32, b: u32| {
+        let b = f32::from_bits(b);
+        a.to_bits() == b.to_bits() || (a.is_nan() && b.is_nan())
+    };
+    let mut backends = 0;
+    for b in Backend::all_supported() {
+        let got = dispatch(b, SinCos(&xs)).expect("supported");
+        for ((x, w), g) in xs.iter().zip(&want).zip(&got) {
+            assert!(
+                same(w.0, g.0) && same(w.1, g.1),
+                "{b}: sin_cos({x:e}) = ({:e}, {:e}), scalar ({:e}, {:e})",
+                f32::from_bits(g.0),
+                f32::from_bits(g.1),
+                w.0,
+                w.1
+            );
+        }
+        backends += 1;
+    }
+    assert!(backends >= 2, "only {backends} backends ran");
+}
