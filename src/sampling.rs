@@ -1,43 +1,65 @@
 //! Shared sampling math: warps from the unit square and the MIS heuristic. Everything that
 //! samples a direction or a point uses these; nothing re-implements them.
 
-use crate::simd::{LaneF32, Lanes, Scalar};
+use crate::simd::{LaneF32, Lanes, Scalar, V3};
 use glam::{Vec2, Vec3};
 use std::f32::consts::{FRAC_PI_2, FRAC_PI_4, PI};
 
 /// Shirley and Chiu 1997, "A Low Distortion Map Between Disk and Square": the concentric map
-/// from [0,1)² to the unit disk.
+/// from [0,1)² to the unit disk. The width-1 instance of
+/// [`square_to_uniform_disk_concentric_lanes`].
 #[inline]
 pub fn square_to_uniform_disk_concentric(u: Vec2) -> Vec2 {
-    let o = 2.0 * u - Vec2::ONE;
-    if o.x == 0.0 && o.y == 0.0 {
-        return Vec2::ZERO;
-    }
-    let (r, theta) = if o.x.abs() > o.y.abs() {
-        (o.x, FRAC_PI_4 * (o.y / o.x))
-    } else {
-        (o.y, FRAC_PI_2 - FRAC_PI_4 * (o.x / o.y))
-    };
-    let (sin, cos) = crate::math::sin_cosf(theta);
-    Vec2::new(r * cos, r * sin)
+    let (x, y) = square_to_uniform_disk_concentric_lanes(Scalar, (u.x, u.y));
+    Vec2::new(x, y)
+}
+
+/// [`square_to_uniform_disk_concentric`] in lanes: (x, y) of the disk point.
+#[inline(always)]
+pub fn square_to_uniform_disk_concentric_lanes<L: Lanes>(l: L, u: (L::F, L::F)) -> (L::F, L::F) {
+    let (zero, one, two) = (l.splat(0.0), l.splat(1.0), l.splat(2.0));
+    let ox = two * u.0 - one;
+    let oy = two * u.1 - one;
+    let centre = ox.cmp_eq(zero) & oy.cmp_eq(zero);
+    let wide = ox.abs().cmp_gt(oy.abs());
+    let r = L::F::select(wide, ox, oy);
+    let theta = L::F::select(
+        wide,
+        l.splat(FRAC_PI_4) * (oy / ox),
+        l.splat(FRAC_PI_2) - l.splat(FRAC_PI_4) * (ox / oy),
+    );
+    let (sin, cos) = l.sin_cos(theta);
+    (
+        L::F::select(centre, zero, r * cos),
+        L::F::select(centre, zero, r * sin),
+    )
 }
 
 /// Cosine-weighted hemisphere around +z by Malley's method (project the concentric disk).
+/// The width-1 instance of [`square_to_cosine_hemisphere_lanes`].
 #[inline]
 pub fn square_to_cosine_hemisphere(u: Vec2) -> Vec3 {
-    let d = square_to_uniform_disk_concentric(u);
-    let z = (1.0 - d.length_squared()).max(0.0).sqrt();
-    Vec3::new(d.x, d.y, z)
+    square_to_cosine_hemisphere_lanes(Scalar, (u.x, u.y)).lane(0)
+}
+
+/// [`square_to_cosine_hemisphere`] in lanes.
+#[inline(always)]
+pub fn square_to_cosine_hemisphere_lanes<L: Lanes>(l: L, u: (L::F, L::F)) -> V3<L::F> {
+    let (x, y) = square_to_uniform_disk_concentric_lanes(l, u);
+    let z = (l.splat(1.0) - (x * x + y * y)).max(l.splat(0.0)).sqrt();
+    V3::new(x, y, z)
 }
 
 /// Density of [`square_to_cosine_hemisphere`] w.r.t. solid angle.
 #[inline]
 pub fn square_to_cosine_hemisphere_pdf(v: Vec3) -> f32 {
-    if v.z > 0.0 {
-        v.z / PI
-    } else {
-        0.0
-    }
+    square_to_cosine_hemisphere_pdf_lanes(Scalar, v.z)
+}
+
+/// [`square_to_cosine_hemisphere_pdf`] in lanes, of the directions' z.
+#[inline(always)]
+pub fn square_to_cosine_hemisphere_pdf_lanes<L: Lanes>(l: L, z: L::F) -> L::F {
+    L::F::select(z.cmp_gt(l.splat(0.0)), z / l.splat(PI), l.splat(0.0))
 }
 
 /// Uniform direction on the unit sphere.

@@ -7,6 +7,7 @@
 //! emitters seen directly and 2 adds direct lighting; Russian roulette applies once depth ≥
 //! `rr_depth`, continuing with probability q = min(max(throughput) · η², 0.95).
 
+use crate::bsdf::diffuse::DiffuseLanes;
 use crate::geometry::{offset_ray_origin_lanes, Ray, Rays};
 use crate::integrator::PathStats;
 use crate::material::ShadingBsdf;
@@ -204,9 +205,10 @@ impl PathIntegrator {
     /// Returns the lanes whose path goes on.
     ///
     /// Ported to lane kernels: emitter sampling (pick, point, solid-angle density), the
-    /// shadow rays, the ray-origin offsets, MIS, the roulette's arithmetic, and the
-    /// directions' changes of frame (world to the shading frame and back). Still lane by
-    /// lane: the BSDFs (eval, pdf, sample), the shadow rays' traversal, the sample draws.
+    /// shadow rays, the ray-origin offsets, MIS, the roulette's arithmetic, the directions'
+    /// changes of frame (world to the shading frame and back), and the `diffuse` BSDF, alone
+    /// or two-sided (eval, pdf, sample: [`DiffuseLanes`]). Still lane by lane: the other
+    /// BSDFs, the shadow rays' traversal, the sample draws.
     #[allow(clippy::too_many_arguments)]
     #[inline(always)]
     pub fn scatter_lanes<L: Lanes>(
@@ -226,6 +228,8 @@ impl PathIntegrator {
         let wi = sis.frame.to_local(wi_world);
         let (mut u0, mut u1) = (zero, zero);
         let mut smooth = 0u32;
+        let mut diffuse = DiffuseLanes::none(l);
+        let (mut diffuse_bits, mut two_sided) = (0u32, 0u32);
         for_each_lane(
             L::WIDTH,
             m,
@@ -237,22 +241,45 @@ impl PathIntegrator {
                     scene.shading_bsdf_into(&si(i), st.wl.as_ref()[i], &mut bufs[i]);
                 }
                 let bsdf = lane_bsdf(scene, shape, &bufs[i]);
-                let w = wi.lane(i);
                 let u = samplers[i].next_2d();
                 u0.set_lane(i, u.x);
                 u1.set_lane(i, u.y);
-                if bsdf.has_smooth_lobe(w) {
+                if let Some((front, back)) = bsdf.as_diffuse() {
+                    // a smooth lobe for every wi
+                    diffuse_bits |= 1 << i;
+                    diffuse.front.set_lane(i, front);
+                    if let Some(back) = back {
+                        two_sided |= 1 << i;
+                        diffuse.back.set_lane(i, back);
+                    }
+                    smooth |= 1 << i;
+                } else if bsdf.has_smooth_lobe(wi.lane(i)) {
                     smooth |= 1 << i;
                 }
             },
         );
-        self.next_event_lanes(l, scene, st, l.mask(smooth), sis, wi, (u0, u1), stats, bufs);
-        let go = self.sample_bsdf_lanes(l, scene, st, m, sis, wi, samplers, bufs);
+        diffuse.m = l.mask(diffuse_bits);
+        diffuse.two_sided = l.mask(two_sided);
+        self.next_event_lanes(
+            l,
+            scene,
+            st,
+            l.mask(smooth),
+            sis,
+            wi,
+            (u0, u1),
+            stats,
+            bufs,
+            &diffuse,
+        );
+        let go = self.sample_bsdf_lanes(l, scene, st, m, sis, wi, samplers, bufs, &diffuse);
         self.roulette_lanes(l, st, go, samplers, stats)
     }
 
     /// Next-event estimation at the lanes of `m` (those whose BSDF has a smooth lobe): one
     /// emitter sample each (`u`), MIS-weighted against BSDF sampling, added to the result.
+    /// The lanes of `diffuse` have a `diffuse` BSDF, evaluated in lanes; the others lane by
+    /// lane.
     #[allow(clippy::too_many_arguments)]
     #[inline(always)]
     fn next_event_lanes<L: Lanes>(
@@ -266,6 +293,7 @@ impl PathIntegrator {
         u: (L::F, L::F),
         stats: &mut PathStats,
         bufs: &[ShadingBsdf],
+        diffuse: &DiffuseLanes<L>,
     ) {
         if !m.any() {
             return;
@@ -277,7 +305,7 @@ impl PathIntegrator {
         let mut lit = 0u32;
         for_each_lane(
             L::WIDTH,
-            sampled,
+            sampled.and_not(diffuse.m),
             #[inline(always)]
             |i| {
                 let bsdf = lane_bsdf(scene, sis.shape.lane(i), &bufs[i]);
@@ -288,12 +316,20 @@ impl PathIntegrator {
                 }
             },
         );
-        let lit = l.mask(lit);
+        let mut lit = l.mask(lit);
+        let sampled_diffuse = sampled & diffuse.m;
+        if sampled_diffuse.any() {
+            let f_d = diffuse.eval(l, wi.z, wo.z);
+            let lit_d = sampled_diffuse & !f_d.cmp_eq(V4::splat(zero));
+            f = V4::select(lit_d, f_d, f);
+            lit = lit | lit_d;
+        }
         if !lit.any() {
             return;
         }
         let ray = Scene::shadow_ray_lanes(l, sis.p, sis.p_error, sis.ng, &ds);
         let delta = ds.delta.bits();
+        let diffuse_bits = diffuse.m.bits();
         let mut bsdf_pdf = zero;
         let mut visible = 0u32;
         for_each_lane(
@@ -307,7 +343,7 @@ impl PathIntegrator {
                 }
                 visible |= 1 << i;
                 // Delta emitters cannot be found by BSDF sampling: no MIS, no BSDF density.
-                if delta >> i & 1 == 0 {
+                if delta >> i & 1 == 0 && diffuse_bits >> i & 1 == 0 {
                     let bsdf = lane_bsdf(scene, sis.shape.lane(i), &bufs[i]);
                     bsdf_pdf.set_lane(i, bsdf.pdf(wi.lane(i), wo.lane(i)));
                 }
@@ -317,6 +353,10 @@ impl PathIntegrator {
         if !visible.any() {
             return;
         }
+        if (visible & diffuse.m).any() {
+            let pdf_d = diffuse.pdf(l, wi.z, wo.z);
+            bsdf_pdf = L::F::select(diffuse.m, pdf_d, bsdf_pdf);
+        }
         let value = f * ds.radiance / ds.pdf;
         let w = L::F::select(ds.delta, l.splat(1.0), mis_power_lanes(l, ds.pdf, bsdf_pdf));
         st.result = V4::select(visible, st.result + st.throughput * value * w, st.result);
@@ -324,6 +364,7 @@ impl PathIntegrator {
 
     /// BSDF sampling at the lanes of `m`: the next rays (from origins offset off the
     /// surfaces), throughputs and MIS state. Returns the lanes whose BSDF gave a direction.
+    /// The lanes of `diffuse` (a `diffuse` BSDF) sample in lanes; the others lane by lane.
     #[allow(clippy::too_many_arguments)]
     #[inline(always)]
     fn sample_bsdf_lanes<L: Lanes>(
@@ -336,21 +377,29 @@ impl PathIntegrator {
         wi: V3<L::F>,
         samplers: &mut [SampleStream],
         bufs: &[ShadingBsdf],
+        diffuse: &DiffuseLanes<L>,
     ) -> L::M {
         let zero = l.splat(0.0);
         let mut wo = V3::splat(zero);
         let mut weight = V4::splat(zero);
         let (mut pdf, mut eta) = (zero, zero);
         let (mut delta, mut go) = (0u32, 0u32);
+        let (mut u2x, mut u2y) = (zero, zero);
+        let diffuse_bits = diffuse.m.bits();
         for_each_lane(
             L::WIDTH,
             m,
             #[inline(always)]
             |i| {
-                let bsdf = lane_bsdf(scene, sis.shape.lane(i), &bufs[i]);
                 let sampler = &mut samplers[i];
                 let u1 = sampler.next_1d();
                 let u2 = sampler.next_2d();
+                if diffuse_bits >> i & 1 == 1 {
+                    u2x.set_lane(i, u2.x);
+                    u2y.set_lane(i, u2.y);
+                    return;
+                }
+                let bsdf = lane_bsdf(scene, sis.shape.lane(i), &bufs[i]);
                 if let Some(bs) = bsdf.sample(wi.lane(i), u1, u2) {
                     go |= 1 << i;
                     wo.set_lane(i, bs.wo);
@@ -361,7 +410,16 @@ impl PathIntegrator {
                 }
             },
         );
-        let go = l.mask(go);
+        let mut go = l.mask(go);
+        if diffuse.m.any() {
+            let d = diffuse.sample(l, wi.z, (u2x, u2y));
+            let ok = d.ok;
+            wo = V3::select(ok, d.wo, wo);
+            weight = V4::select(ok, d.weight, weight);
+            pdf = L::F::select(ok, d.pdf, pdf);
+            eta = L::F::select(ok, l.splat(1.0), eta);
+            go = go | ok;
+        }
         if go.any() {
             let wo_world = sis.frame.to_world(wo);
             st.throughput = V4::select(go, st.throughput * weight, st.throughput);

@@ -104,6 +104,26 @@ impl ShadingBsdf {
         }
     }
 
+    /// The reflectances of a BSDF that is one `diffuse` in radiance mode, (front, back), the
+    /// back `None` where it is one-sided: the root a `diffuse`, or a `twosided` of two (or
+    /// one) `diffuse`. What the lane engine evaluates and samples in lanes
+    /// ([`crate::bsdf::diffuse::DiffuseLanes`]).
+    #[inline(always)]
+    pub fn as_diffuse(&self) -> Option<(Spectrum, Option<Spectrum>)> {
+        if self.importance {
+            return None;
+        }
+        let leaf = |i: u8| match self.node(i) {
+            Node::Leaf(Bsdf::Diffuse(d)) => Some(d.reflectance),
+            _ => None,
+        };
+        match self.nodes.first()? {
+            Node::Leaf(Bsdf::Diffuse(d)) if self.nodes.len() == 1 => Some((d.reflectance, None)),
+            Node::TwoSided { front, back } => Some((leaf(*front)?, Some(leaf(*back)?))),
+            _ => None,
+        }
+    }
+
     #[inline]
     pub(crate) fn node(&self, i: u8) -> &Node {
         self.nodes.get(i as usize).unwrap_or(&Node::Null)
