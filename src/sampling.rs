@@ -456,6 +456,8 @@ mod tests {
             }
         }
         assert!((integral - 1.0).abs() < 1e-6);
+        // cells outside the grid have probability 0, whichever index is out
+        assert_eq!((d.pmf(3, 0), d.pmf(0, 3), d.pmf(3, 3)), (0.0, 0.0, 0.0));
         for k in 0..200 {
             let u = Vec2::new((k as f32 * 0.618_034).fract(), (k as f32 + 0.5) / 200.0);
             let (uv, pdf) = d.sample(u);
