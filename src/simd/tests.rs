@@ -976,14 +976,14 @@ impl LaneProgram for SinCos<'_> {
 
 #[test]
 fn sin_cos_lanes_give_the_scalar_bits() {
-    // Every 7th f32 of [−2π, 2π] (the renderer's angles), then random bit patterns and the
+    // Every 61st f32 of [−2π, 2π] (the renderer's angles), then random bit patterns and the
     // edges: the hand-off to std at 2¹⁹, quadrant boundaries, ±0, subnormals, ±∞, NaNs.
     let two_pi = std::f32::consts::TAU;
     let mut xs: Vec<f32> = Vec::new();
     let mut x = -two_pi;
     while x <= two_pi {
         xs.push(x);
-        for _ in 0..7 {
+        for _ in 0..61 {
             x = x.next_up();
         }
     }
