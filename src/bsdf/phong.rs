@@ -192,6 +192,22 @@ mod tests {
         sum * FRAC_PI_2 / steps as f64
     }
 
+    /// The specular lobe is sampled with Mitsuba's probability s̄ / (d̄ + s̄), the means of the
+    /// two reflectances (`phong.cpp`'s `m_specular_sampling_weight`): seen in the density of
+    /// a direction outside the specular lobe, (1 − w) cos θo / π.
+    #[test]
+    fn lobes_are_picked_with_mitsubas_probability() {
+        let kd = crate::spectrum::from_rgb(Vec3::new(0.2, 0.4, 0.6)); // mean 0.4
+        let ks = crate::spectrum::from_rgb(Vec3::new(0.1, 0.1, 0.4)); // mean 0.2
+        let b = Phong::new(20.0, kd, ks);
+        let wi = Vec3::new(0.6, 0.0, 0.8);
+        // the mirror direction is (−0.6, 0, 0.8); this wo is at more than 90° from it
+        let wo = Vec3::new(0.8, 0.0, 0.6);
+        assert_eq!(b.lobe(wi, wo), 0.0);
+        let w = 1.0 - b.pdf(wi, wo) as f64 * std::f64::consts::PI / 0.6;
+        assert!((w - 0.2 / 0.6).abs() < 1e-6, "specular weight {w}");
+    }
+
     #[test]
     fn specular_lobe_of_normal_incidence_integrates_to_one() {
         // ∫ (n + 2) / (2π) cosⁿ α cos θo dω = 1 when the mirror direction is the normal:

@@ -315,6 +315,21 @@ mod tests {
     /// u = (i + ½)/W, rows at v = j/(H − 1)), the mean of the four around a cell's middle,
     /// wrapping around in u (the pole rows, where u is undefined, left out); independent of
     /// the sampling code.
+    /// A uniform map's mean radiance over the sphere is its value (the mean over RGB, times
+    /// the scale): what its power, and so SPPM's choice of emitter, is made of.
+    #[test]
+    fn a_uniform_map_has_its_value_as_mean_radiance() {
+        let (w, h) = (8, 5);
+        let texels = vec![[0.2f32, 0.4, 0.6]; w * h];
+        let e = EnvMapEmitter::new(w, h, &texels, 2.0, Mat3::IDENTITY).unwrap();
+        let want = 2.0 * (0.2 + 0.4 + 0.6) / 3.0;
+        assert!(
+            (e.mean_radiance() - want).abs() < 1e-6 * want,
+            "{}",
+            e.mean_radiance()
+        );
+    }
+
     #[test]
     fn eval_interpolates_texel_centres_bilinearly() {
         let (w, h) = (4, 4);
