@@ -568,6 +568,15 @@ fn max_depth_one_is_emission_only_and_rays_are_counted() {
                     "{integrator} max_depth {max_depth}"
                 );
             }
+            // At most max_depth scattering events (surface or medium) per path, and with a
+            // medium of albedo 0.5 in front of a lit plane some of them happen.
+            assert!(
+                s.path.bounces <= s.paths * max_depth as u64
+                    && (max_depth == 1 || s.path.bounces > 0),
+                "{integrator} max_depth {max_depth}: {} bounces for {} paths",
+                s.path.bounces,
+                s.paths
+            );
             // Camera ray, then per scattering event (surface or medium) one shadow ray and
             // one continuation, each crossing the cube's two null faces at most.
             let bound = s.paths * (1 + 2 * 3 * max_depth as u64) * 3;
