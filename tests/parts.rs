@@ -9,8 +9,8 @@ mod common;
 use common::*;
 use penumbra::film::Film;
 use penumbra::progressive::{
-    merge_parts, pass_spp, render_part, render_progressive, scene_hash, Checkpoint, PartPlan,
-    ProgressiveSettings,
+    merge_parts, pass_spp, render_part, render_part_with, render_progressive, scene_hash,
+    Checkpoint, Checkpointing, PartPlan, PartSettings, ProgressiveSettings,
 };
 use penumbra::render::Job;
 use penumbra::scene::Scene;
@@ -340,4 +340,45 @@ fn command_line_parts_and_merge() {
     );
     let e = err_line(&run(&["merge", &spectral(0), &p(1), "-o", "x.exr"]));
     assert!(e.contains("or --mode"), "{e}");
+}
+
+/// A part whose checkpoints cannot be written says so: every failed periodic write is
+/// counted and the last error kept (a part rendering for hours must not lose its progress
+/// silently). Each failure costs the retry delays (0.5 s).
+#[test]
+fn failed_part_checkpoints_are_counted_and_reported() {
+    let (job, hash) = load_with_hash("scenes/cornell-box.xml", &[("res", "16")]);
+    let pass = pass_spp(16, 16) as u64;
+    let plan = PartPlan {
+        index: 0,
+        count: 1,
+        plan_spp: 3 * pass,
+        start_spp: 0,
+    };
+    let dir = std::env::temp_dir().join(format!("penumbra-part-ckpt-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(&dir).expect("temp dir");
+    let run = |path: PathBuf| {
+        let settings = PartSettings {
+            seed: SEED,
+            threads: None,
+            scene_hash: hash,
+            stop: None,
+            checkpoint: Some(Checkpointing {
+                path,
+                every: std::time::Duration::ZERO,
+            }),
+        };
+        render_part_with(&job, &plan, &settings, None, &|_| {}).expect("part renders")
+    };
+    // after the first and the second of three passes
+    let bad = run(dir.join("no-such-dir").join("part.ckpt"));
+    assert_eq!(bad.checkpoint_failures, 2);
+    let e = bad.checkpoint_error.expect("the last failure is kept");
+    assert!(e.contains("no-such-dir"), "{e}");
+    let good = run(dir.join("part.ckpt"));
+    let written = dir.join("part.ckpt").exists();
+    let _ = std::fs::remove_dir_all(&dir);
+    assert_eq!((good.checkpoint_failures, good.checkpoint_error), (0, None));
+    assert!(written);
 }
