@@ -260,3 +260,29 @@ fn mesh_from_data(
     }
     mesh
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// An OBJ file's vertex normals and texture coordinates reach the mesh data (a smooth
+    /// mesh must not render faceted), and a file without them gives none.
+    #[test]
+    fn obj_normals_and_uvs_are_kept() {
+        let obj = b"v 0 0 0\nv 1 0 0\nv 0 1 0\nvt 0 0\nvt 1 0\nvt 0 1\n\
+                    vn 0 0 1\nvn 0 0.6 0.8\nvn 0.6 0 0.8\nf 1/1/1 2/2/2 3/3/3\n";
+        let d = obj_data(obj).expect("parses");
+        assert_eq!(d.triangles, vec![[0, 1, 2]]);
+        let n = d.normals.expect("normals kept");
+        assert_eq!(n.len(), 3);
+        let mut sorted = n.clone();
+        sorted.sort_by(|a, b| a.partial_cmp(b).unwrap());
+        assert_eq!(
+            sorted,
+            vec![[0.0, 0.0, 1.0], [0.0, 0.6, 0.8], [0.6, 0.0, 0.8]]
+        );
+        assert_eq!(d.uvs.expect("uvs kept").len(), 3);
+        let plain = obj_data(b"v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n").expect("parses");
+        assert!(plain.normals.is_none() && plain.uvs.is_none());
+    }
+}
