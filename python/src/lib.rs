@@ -9,7 +9,8 @@
 //! after the pass under way.
 
 use numpy::{
-    AllowTypeChange, PyArray1, PyArray3, PyArrayLike3, PyArrayMethods, PyUntypedArrayMethods,
+    AllowTypeChange, PyArray1, PyArray3, PyArrayLike2, PyArrayLike3, PyArrayMethods,
+    PyUntypedArrayMethods,
 };
 use penumbra::io::exr::{self, Attribute, RgbImage};
 use penumbra::progressive::{self, ProgressiveSettings};
@@ -316,6 +317,55 @@ impl Scene {
         } else {
             Ok(image.into_any())
         }
+    }
+
+    /// Casts a batch of rays through the scene's hierarchy (the traversal the integrators
+    /// use), as Mitsuba's `scene.ray_intersect_preliminary` (closest hit) or `scene.ray_test`
+    /// (`any=True`) do. `origins` and `directions` are (N, 3) arrays; `tmax` bounds every
+    /// ray (default: none). Returns `(values, seconds)`: per ray the distance of the nearest
+    /// hit (inf on a miss), or with `any=True` 1.0 where something lies on the ray, else
+    /// 0.0; and the seconds the traversal took on `threads` workers (default: one per core).
+    #[pyo3(signature = (origins, directions, any=false, threads=None, tmax=None))]
+    fn cast<'py>(
+        &self,
+        py: Python<'py>,
+        origins: PyArrayLike2<'py, f32, AllowTypeChange>,
+        directions: PyArrayLike2<'py, f32, AllowTypeChange>,
+        any: bool,
+        threads: Option<usize>,
+        tmax: Option<f32>,
+    ) -> PyResult<(Bound<'py, PyArray1<f32>>, f64)> {
+        let (o, d) = (origins.as_array(), directions.as_array());
+        if o.shape().len() != 2 || o.shape()[1] != 3 || o.shape() != d.shape() {
+            return Err(PyValueError::new_err(format!(
+                "origins and directions must both be (N, 3) arrays, got {:?} and {:?}",
+                o.shape(),
+                d.shape()
+            )));
+        }
+        if threads == Some(0) {
+            return Err(PyValueError::new_err("threads must be at least 1"));
+        }
+        let tmax = tmax.unwrap_or(f32::INFINITY);
+        if tmax.is_nan() || tmax <= 0.0 {
+            return Err(PyValueError::new_err("tmax must be positive"));
+        }
+        let v3 = |a: &numpy::ndarray::ArrayView2<f32>, i: usize| {
+            glam::Vec3::new(a[[i, 0]], a[[i, 1]], a[[i, 2]])
+        };
+        let rays: Vec<penumbra::geometry::Ray> = (0..o.shape()[0])
+            .map(|i| penumbra::geometry::Ray::new(v3(&o, i), v3(&d, i), tmax))
+            .collect();
+        let query = if any {
+            penumbra::study::rays::Query::Any
+        } else {
+            penumbra::study::rays::Query::Closest
+        };
+        let scene = &self.job.scene;
+        let (values, seconds) = py
+            .detach(|| penumbra::study::rays::cast(scene, &rays, query, threads))
+            .map_err(err)?;
+        Ok((PyArray1::from_vec(py, values), seconds))
     }
 }
 

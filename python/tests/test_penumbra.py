@@ -199,6 +199,31 @@ def test_rendering_100_times_does_not_grow_the_process():
     assert growth < 8 << 20, f"RSS grew by {growth / 2**20:.1f} MiB over 100 renders"
 
 
+# --- cast -----------------------------------------------------------------------------------
+
+
+def test_cast_gives_the_distances_and_occlusion_of_the_geometry(cbox):
+    # The Cornell box's walls are the planes x, y = +-1 and z = -1 (scenes/cornell-box.xml),
+    # open towards +z; its blocks stand below y = -0.3.
+    o = np.array([[0.5, 0.5, 0.9], [0.9, 0.9, 0.9], [0.0, 0.0, 3.9], [0.9, 0.9, 0.9]])
+    d = np.array([[0.0, 1.0, 0.0], [0.0, 0.0, -1.0], [0.0, 1.0, 0.0], [-1.0, 0.0, 0.0]])
+    for threads in (1, 2):
+        t, seconds = cbox.cast(o, d, threads=threads)
+        assert t.dtype == np.float32 and t.shape == (4,) and seconds >= 0
+        np.testing.assert_allclose(t[[0, 1, 3]], [0.5, 1.9, 1.9], rtol=1e-5)
+        assert t[2] == np.inf
+        hit, _ = cbox.cast(o, d, any=True, threads=threads)
+        assert hit.tolist() == [1.0, 1.0, 0.0, 1.0]
+    short, _ = cbox.cast(o, d, tmax=1.0)
+    assert short[0] == pytest.approx(0.5) and np.isinf(short[1:]).all()
+    with pytest.raises(ValueError):
+        cbox.cast(o[:, :2], d[:, :2])
+    with pytest.raises(ValueError):
+        cbox.cast(o, d[:3])
+    with pytest.raises(penumbra.PenumbraError, match="ray 1"):
+        cbox.cast(o, d * [[1], [0], [1], [1]])
+
+
 # --- compare --------------------------------------------------------------------------------
 
 

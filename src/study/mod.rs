@@ -2,7 +2,7 @@
 //! ([`compare`], [`metrics`]), convergence ladders and experiments ([`convergence`],
 //! [`experiment`]), the validation study against Mitsuba ([`validation`]) and Mitsuba's own
 //! regression suite ([`suite`]), the statistics
-//! behind the tests ([`stats`], [`chi2`]), plots ([`plot`]) and the interactive comparison page
+//! behind the tests ([`stats`], [`chi2`]), plots ([`plot`]), batches of rays cast and timed ([`rays`]) and the interactive comparison page
 //! ([`report`]).
 
 pub mod chi2;
@@ -11,6 +11,7 @@ pub mod convergence;
 pub mod experiment;
 pub mod metrics;
 pub mod plot;
+pub mod rays;
 pub mod report;
 pub mod stats;
 pub mod suite;
