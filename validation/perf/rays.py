@@ -11,7 +11,8 @@ and its kernel is compiled by an untimed first call); medians of --repeat runs. 
 distances must agree ray by ray (same geometry): the script reports the share of rays
 whose hit distances agree to 1e-4 (relative) and whose occlusion answers are equal.
 
-Meshes: the Stanford bunny (scenes/meshes, 69,451 triangles) and a generated displaced
+Scene files given with --scene are measured too, whole (every shape they hold, where the
+scene file puts them). Meshes: the Stanford bunny (scenes/meshes, 69,451 triangles) and a generated displaced
 sphere of --dense triangles (default 2,000,000; written as a binary PLY to a temporary
 folder). Batches of --rays rays (default 1M): "coherent" (a pinhole camera's rays, one per
 pixel of a square image framing the mesh) and "incoherent" (origins uniform in the mesh's
@@ -133,6 +134,10 @@ def main():
     ap.add_argument("--repeat", type=int, default=3)
     ap.add_argument("--threads", type=int, action="append")
     ap.add_argument("--variants", default="llvm_ad_rgb")
+    ap.add_argument("--scene", action="append", default=[],
+                    help="also a whole scene file (its shapes, loaded by both)")
+    ap.add_argument("--no-meshes", action="store_true",
+                    help="only the --scene files, not the bunny and the generated mesh")
     ap.add_argument("--out")
     args = ap.parse_args()
     threads = args.threads or [1, 2]
@@ -144,12 +149,15 @@ def main():
     import penumbra
 
     tmp = Path(tempfile.mkdtemp(prefix="penumbra-rays-"))
-    dense = tmp / "dense.ply"
-    n_dense = displaced_sphere(dense, args.dense, np)
-    meshes = [
-        ("bunny (69,451 triangles)", "obj", ROOT / "scenes/meshes/stanford-bunny.obj"),
-        (f"displaced sphere ({n_dense:,} triangles)", "ply", dense),
-    ]
+    meshes = []
+    if not args.no_meshes:
+        dense = tmp / "dense.ply"
+        n_dense = displaced_sphere(dense, args.dense, np)
+        meshes = [
+            ("bunny (69,451 triangles)", "obj", ROOT / "scenes/meshes/stanford-bunny.obj"),
+            (f"displaced sphere ({n_dense:,} triangles)", "ply", dense),
+        ]
+    meshes += [(Path(p).name, "scene", Path(p).resolve()) for p in args.scene]
     rows = [
         "| mesh | rays | query | threads | penumbra Mrays/s | "
         + " | ".join(f"{v} Mrays/s | ratio vs {v}" for v in args.variants.split(","))
@@ -157,8 +165,11 @@ def main():
         "|---|---|---|---:|---:|" + "---:|---:|" * len(args.variants.split(",")) + "---:|",
     ]
     for label, kind, path in meshes:
-        xml = tmp / f"{path.stem}.xml"
-        xml.write_text(SCENE.format(kind=kind, path=path))
+        if kind == "scene":
+            xml = path
+        else:
+            xml = tmp / f"{path.stem}.xml"
+            xml.write_text(SCENE.format(kind=kind, path=path))
         pen = penumbra.load(str(xml))
         scenes = {}
         for v in args.variants.split(","):
