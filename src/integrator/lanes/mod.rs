@@ -15,8 +15,9 @@
 //! ([`crate::integrator::path::PathIntegrator::scatter_lanes`]) runs emitter sampling, the
 //! shadow rays, the ray-origin offsets, MIS and the roulette's arithmetic as lane kernels,
 //! written once over [`crate::simd::Lanes`], whose width-1 instance is the scalar engine's
-//! code. The rest (intersection, emission, the BSDFs, the sample draws) is still the scalar
-//! code, called lane by lane.
+//! code, and so is the step from a hit on a shape that does not emit to the scatter step.
+//! The rest (the traversal, emission, the BSDFs other than `diffuse`, the sample draws) is
+//! still the scalar code, called lane by lane.
 
 pub mod path;
 

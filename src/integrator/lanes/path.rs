@@ -7,14 +7,17 @@
 //!    on meshes outside instances by the lane kernel ([`triangle_interactions`], once for
 //!    every mesh hit, each lane's triangle loaded from its own mesh), elsewhere lane by
 //!    lane;
-//! 3. at each hit, the emission and whether the path goes on ([`PathIntegrator::escape`],
-//!    [`PathIntegrator::at_surface`]);
+//! 3. at each hit, the emission and whether the path goes on: in lanes where the shape
+//!    does not emit (the direction back to the previous vertex, the end at max_depth),
+//!    lane by lane ([`PathIntegrator::escape`], [`PathIntegrator::at_surface`]) where the
+//!    ray left the scene under an environment or hit an emitter;
 //! 4. at the lanes that go on, next-event estimation, BSDF sampling and Russian roulette
 //!    ([`PathIntegrator::scatter_lanes`], whose lane kernels run on all of them at once);
 //!
 //! and a lane whose path ended writes its result into the tile's slot for its sample.
-//! The path state lives in lanes ([`PathLanes`]); the traversal of step 2 and step 3 are
-//! the scalar code called lane by lane on the state moved out of and back into the lanes.
+//! The path state lives in lanes ([`PathLanes`]); the traversal of step 2 and the emission
+//! of step 3 are the scalar code called lane by lane on the state moved out of and back into
+//! the lanes.
 
 use super::LaneStats;
 use crate::accel::Hit;
@@ -250,25 +253,48 @@ fn trace_queue<L: Lanes>(
             sis = SurfaceInteractions::select(l.mask(on_mesh), &r, &sis);
         }
 
-        // 3. Emission where the rays ended; which paths go on.
-        let mut scatter = 0u32;
+        // 3. Emission where the rays ended; which paths go on. Lanes whose ray left the
+        // scene or hit an emitter run the scalar steps (`escape`, `at_surface`) on their
+        // state moved out of the lanes; the others (a hit on a shape that does not emit: no
+        // emission, the path ends only at max_depth) stay in the lanes, with
+        // `at_surface`'s arithmetic in lanes: wi = -d / |d|, and the end where
+        // depth + 1 >= max_depth (max_depth >= 1 here, so depth >= max_depth - 1).
+        let mut hit_bits = 0u32;
+        let mut emits = 0u32;
         for i in lanes_of(active) {
+            if hits[i].is_some() {
+                hit_bits |= 1 << i;
+                let shape = sis.shape.lane(i) as usize;
+                emits |= (scene.shapes[shape].emitter.is_some() as u32) << i;
+            } else if scene.environment.is_some() {
+                let mut st = p.st.get(i);
+                path.escape(scene, &mut st);
+                p.finish(i, st.result.into(), out);
+            } else {
+                p.finish(i, p.st.result.lane(i), out);
+            }
+        }
+        let mut scatter = 0u32;
+        for i in lanes_of(emits) {
             let mut st = p.st.get(i);
-            match &hits[i] {
-                None => {
-                    path.escape(scene, &mut st);
-                    p.finish(i, st.result.into(), out);
+            match path.at_surface(scene, &mut st, sis.shape.lane(i), || sis.lane(i)) {
+                SurfaceStep::End => p.finish(i, st.result.into(), out),
+                SurfaceStep::Trace => p.st.put(l, i, &st),
+                SurfaceStep::Scatter { wi_world } => {
+                    p.st.put(l, i, &st);
+                    p.wi_world.set_lane(i, wi_world);
+                    scatter |= 1 << i;
                 }
-                Some(_) => match path.at_surface(scene, &mut st, sis.shape.lane(i), || sis.lane(i))
-                {
-                    SurfaceStep::End => p.finish(i, st.result.into(), out),
-                    SurfaceStep::Trace => p.st.put(l, i, &st),
-                    SurfaceStep::Scatter { wi_world } => {
-                        p.st.put(l, i, &st);
-                        p.wi_world.set_lane(i, wi_world);
-                        scatter |= 1 << i;
-                    }
-                },
+            }
+        }
+        let plain = l.mask(hit_bits & !emits);
+        if plain.any() {
+            let more = p.st.depth.cmp_lt(l.splat_u32(path.max_depth - 1));
+            let goes_on = plain & more;
+            p.wi_world = V3::select(goes_on, -p.st.ray.d.normalize(l.splat(1.0)), p.wi_world);
+            scatter |= goes_on.bits();
+            for i in lanes_of(plain.and_not(more).bits()) {
+                p.finish(i, p.st.result.lane(i), out);
             }
         }
         counters.scattered += scatter.count_ones() as u64;
