@@ -11,7 +11,7 @@ use crate::bsdf::diffuse::DiffuseLanes;
 use crate::geometry::{offset_ray_origin_lanes, Ray, Rays};
 use crate::integrator::PathStats;
 use crate::material::ShadingBsdf;
-use crate::sampler::SampleStream;
+use crate::sampler::{Draws, SampleStream};
 use crate::sampling::{mis_power, mis_power_lanes};
 use crate::scene::Scene;
 use crate::shape::{SurfaceInteraction, SurfaceInteractions};
@@ -191,7 +191,7 @@ impl PathIntegrator {
             |_| *si,
             &SurfaceInteractions::from(si),
             wi_world.into(),
-            std::slice::from_mut(sampler),
+            &mut Draws::Streams(std::slice::from_mut(sampler)),
             stats,
             std::slice::from_mut(bsdf_buf),
         )
@@ -207,8 +207,9 @@ impl PathIntegrator {
     /// Ported to lane kernels: emitter sampling (pick, point, solid-angle density), the
     /// shadow rays, the ray-origin offsets, MIS, the roulette's arithmetic, the directions'
     /// changes of frame (world to the shading frame and back), and the `diffuse` BSDF, alone
-    /// or two-sided (eval, pdf, sample: [`DiffuseLanes`]). Still lane by lane: the other
-    /// BSDFs, the shadow rays' traversal, the sample draws.
+    /// or two-sided (eval, pdf, sample: [`DiffuseLanes`]), and the sample draws of the
+    /// `independent` sampler ([`Draws::Independent`]; the other samplers draw lane by lane).
+    /// Still lane by lane: the other BSDFs, the shadow rays' traversal.
     #[allow(clippy::too_many_arguments)]
     #[inline(always)]
     pub fn scatter_lanes<L: Lanes>(
@@ -220,13 +221,14 @@ impl PathIntegrator {
         si: impl Fn(usize) -> SurfaceInteraction,
         sis: &SurfaceInteractions<L>,
         wi_world: V3<L::F>,
-        samplers: &mut [SampleStream],
+        draws: &mut Draws<L>,
         stats: &mut PathStats,
         bufs: &mut [ShadingBsdf],
     ) -> L::M {
-        let zero = l.splat(0.0);
         let wi = sis.frame.to_local(wi_world);
-        let (mut u0, mut u1) = (zero, zero);
+        // Each lane draws in the scalar order: the emitter sample, the BSDF's (1D, 2D),
+        // the roulette's.
+        let (u0, u1) = draws.next_2d(l, m);
         let mut smooth = 0u32;
         let mut diffuse = DiffuseLanes::none(l);
         let (mut diffuse_bits, mut two_sided) = (0u32, 0u32);
@@ -241,9 +243,6 @@ impl PathIntegrator {
                     scene.shading_bsdf_into(&si(i), st.wl.as_ref()[i], &mut bufs[i]);
                 }
                 let bsdf = lane_bsdf(scene, shape, &bufs[i]);
-                let u = samplers[i].next_2d();
-                u0.set_lane(i, u.x);
-                u1.set_lane(i, u.y);
                 if let Some((front, back)) = bsdf.as_diffuse() {
                     // a smooth lobe for every wi
                     diffuse_bits |= 1 << i;
@@ -272,8 +271,8 @@ impl PathIntegrator {
             bufs,
             &diffuse,
         );
-        let go = self.sample_bsdf_lanes(l, scene, st, m, sis, wi, samplers, bufs, &diffuse);
-        self.roulette_lanes(l, st, go, samplers, stats)
+        let go = self.sample_bsdf_lanes(l, scene, st, m, sis, wi, draws, bufs, &diffuse);
+        self.roulette_lanes(l, st, go, draws, stats)
     }
 
     /// Next-event estimation at the lanes of `m` (those whose BSDF has a smooth lobe): one
@@ -375,7 +374,7 @@ impl PathIntegrator {
         m: L::M,
         sis: &SurfaceInteractions<L>,
         wi: V3<L::F>,
-        samplers: &mut [SampleStream],
+        draws: &mut Draws<L>,
         bufs: &[ShadingBsdf],
         diffuse: &DiffuseLanes<L>,
     ) -> L::M {
@@ -384,23 +383,16 @@ impl PathIntegrator {
         let mut weight = V4::splat(zero);
         let (mut pdf, mut eta) = (zero, zero);
         let (mut delta, mut go) = (0u32, 0u32);
-        let (mut u2x, mut u2y) = (zero, zero);
-        let diffuse_bits = diffuse.m.bits();
+        let u1 = draws.next_1d(l, m);
+        let (u2x, u2y) = draws.next_2d(l, m);
         for_each_lane(
             L::WIDTH,
-            m,
+            m.and_not(diffuse.m),
             #[inline(always)]
             |i| {
-                let sampler = &mut samplers[i];
-                let u1 = sampler.next_1d();
-                let u2 = sampler.next_2d();
-                if diffuse_bits >> i & 1 == 1 {
-                    u2x.set_lane(i, u2.x);
-                    u2y.set_lane(i, u2.y);
-                    return;
-                }
                 let bsdf = lane_bsdf(scene, sis.shape.lane(i), &bufs[i]);
-                if let Some(bs) = bsdf.sample(wi.lane(i), u1, u2) {
+                let u2 = glam::Vec2::new(u2x.lane(i), u2y.lane(i));
+                if let Some(bs) = bsdf.sample(wi.lane(i), u1.lane(i), u2) {
                     go |= 1 << i;
                     wo.set_lane(i, bs.wo);
                     weight.set_lane(i, bs.weight);
@@ -447,7 +439,7 @@ impl PathIntegrator {
         l: L,
         st: &mut PathLanes<L>,
         m: L::M,
-        samplers: &mut [SampleStream],
+        draws: &mut Draws<L>,
         stats: &mut PathStats,
     ) -> L::M {
         let throughput_max = st.throughput.max_element();
@@ -457,19 +449,8 @@ impl PathIntegrator {
             return alive;
         }
         let q = (throughput_max * st.eta * st.eta).min(l.splat(0.95));
-        let mut ended = 0u32;
-        for_each_lane(
-            L::WIDTH,
-            rr,
-            #[inline(always)]
-            |i| {
-                if samplers[i].next_1d() >= q.lane(i) {
-                    stats.rr_terminated += 1;
-                    ended |= 1 << i;
-                }
-            },
-        );
-        let ended = l.mask(ended);
+        let ended = rr & draws.next_1d(l, rr).cmp_ge(q);
+        stats.rr_terminated += ended.bits().count_ones() as u64;
         st.throughput = V4::select(rr.and_not(ended), st.throughput / q, st.throughput);
         alive.and_not(ended)
     }

@@ -32,12 +32,13 @@
 mod ldsampler;
 mod multijitter;
 mod orthogonal;
+pub mod pcg;
 mod stratified;
 mod zsobol;
 
+use crate::simd::{for_each_lane, LaneF32, Lanes};
 use glam::Vec2;
-use rand::RngExt;
-use rand_pcg::Pcg32;
+use pcg::{Pcg32, PcgLanes};
 
 /// SplitMix64's finaliser (Steele et al. 2014): a bijective 64-bit mixer.
 #[inline]
@@ -277,11 +278,18 @@ impl SampleStream {
         }
     }
 
+    /// The `independent` sampler's generator, at this stream's next draw (`None` for the
+    /// other samplers, whose draws depend on more than the generator): what the lane
+    /// engine draws from in lanes ([`Draws::Independent`]).
+    pub fn independent_pcg(&self) -> Option<Pcg32> {
+        matches!(self.kind, SamplerKind::Independent).then_some(self.rng)
+    }
+
     /// A uniform jitter in [0, 1), or the stratum's centre without jitter.
     #[inline]
     fn jitter(&mut self, on: bool) -> f32 {
         if on {
-            self.rng.random::<f32>()
+            self.rng.next_f32()
         } else {
             0.5
         }
@@ -301,7 +309,7 @@ impl SampleStream {
     #[inline(always)]
     pub fn next_1d(&mut self) -> f32 {
         if matches!(self.kind, SamplerKind::Independent) {
-            self.rng.random::<f32>()
+            self.rng.next_f32()
         } else {
             self.next_1d_structured()
         }
@@ -310,7 +318,7 @@ impl SampleStream {
     #[inline(never)]
     fn next_1d_structured(&mut self) -> f32 {
         match self.kind {
-            SamplerKind::Independent => self.rng.random::<f32>(),
+            SamplerKind::Independent => self.rng.next_f32(),
             SamplerKind::Stratified { jitter } => {
                 let (_, p) = self.next_dimension();
                 let j = self.jitter(jitter);
@@ -377,6 +385,50 @@ impl SampleStream {
             SamplerKind::ZSobol => {
                 let (d, h) = self.next_dimension();
                 zsobol::sample_2d(self.zsobol, d, h)
+            }
+        }
+    }
+}
+
+/// Where the paths in lanes draw their numbers, lane `i` its own sample's: from its
+/// [`SampleStream`] one lane at a time (any sampler), or, for the `independent` sampler,
+/// from every lane's PCG32 at once in lanes (the same numbers: its draws are the
+/// generator's, [`SampleStream::independent_pcg`]).
+pub enum Draws<'a, L: Lanes> {
+    Streams(&'a mut [SampleStream]),
+    Independent(&'a mut PcgLanes<L>),
+}
+
+impl<L: Lanes> Draws<'_, L> {
+    /// [`SampleStream::next_1d`] of the lanes of `m` (other lanes: unspecified).
+    #[inline(always)]
+    pub fn next_1d(&mut self, l: L, m: L::M) -> L::F {
+        match self {
+            Draws::Independent(pcg) => pcg.next_f32_lanes(l, m),
+            Draws::Streams(streams) => {
+                let mut u = l.splat(0.0);
+                for_each_lane(L::WIDTH, m, |i| u.set_lane(i, streams[i].next_1d()));
+                u
+            }
+        }
+    }
+
+    /// [`SampleStream::next_2d`] of the lanes of `m` (other lanes: unspecified).
+    #[inline(always)]
+    pub fn next_2d(&mut self, l: L, m: L::M) -> (L::F, L::F) {
+        match self {
+            Draws::Independent(pcg) => {
+                let x = pcg.next_f32_lanes(l, m);
+                (x, pcg.next_f32_lanes(l, m))
+            }
+            Draws::Streams(streams) => {
+                let (mut x, mut y) = (l.splat(0.0), l.splat(0.0));
+                for_each_lane(L::WIDTH, m, |i| {
+                    let u = streams[i].next_2d();
+                    x.set_lane(i, u.x);
+                    y.set_lane(i, u.y);
+                });
+                (x, y)
             }
         }
     }

@@ -15,9 +15,10 @@
 //! ([`crate::integrator::path::PathIntegrator::scatter_lanes`]) runs emitter sampling, the
 //! shadow rays, the ray-origin offsets, MIS and the roulette's arithmetic as lane kernels,
 //! written once over [`crate::simd::Lanes`], whose width-1 instance is the scalar engine's
-//! code, and so is the step from a hit on a shape that does not emit to the scatter step.
-//! The rest (the traversal, emission, the BSDFs other than `diffuse`, the sample draws) is
-//! still the scalar code, called lane by lane.
+//! code, and so are the step from a hit on a shape that does not emit to the scatter step
+//! and the `independent` sampler's draws (every lane's PCG32 in u64 lanes,
+//! [`crate::sampler::pcg`]). The rest (the traversal, emission, the BSDFs other than
+//! `diffuse`, the other samplers' draws) is still the scalar code, called lane by lane.
 
 pub mod path;
 

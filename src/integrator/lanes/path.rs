@@ -25,7 +25,8 @@ use crate::geometry::Ray;
 use crate::integrator::path::{PathIntegrator, PathLanes, SurfaceStep};
 use crate::integrator::PathStats;
 use crate::material::ShadingBsdf;
-use crate::sampler::SampleStream;
+use crate::sampler::pcg::PcgLanes;
+use crate::sampler::{Draws, SampleStream};
 use crate::scene::Scene;
 use crate::shape::{triangle_interactions, ShapeGeometry, SurfaceInteractions, TriangleLanes};
 use crate::simd::MAX_WIDTH;
@@ -117,6 +118,9 @@ struct Paths<L: Lanes> {
     film_x: L::F,
     film_y: L::F,
     samplers: [SampleStream; MAX_WIDTH],
+    /// The lanes' generators, where the render's sampler is `independent`: its draws are
+    /// made for all lanes at once from these ([`Draws::Independent`]), not from `samplers`.
+    pcg: PcgLanes<L>,
 }
 
 impl<L: Lanes> Paths<L> {
@@ -132,6 +136,7 @@ impl<L: Lanes> Paths<L> {
             film_x: zero,
             film_y: zero,
             samplers: std::array::from_fn(|_| SampleStream::new(0, 0, 0)),
+            pcg: PcgLanes::zero(l),
         }
     }
 
@@ -181,6 +186,9 @@ fn trace_queue<L: Lanes>(
     // Where the lanes' materials vary, their BSDFs, filled in place (see `Scene::bsdf_at`).
     let mut bsdf_bufs = vec![ShadingBsdf::new(); width];
     let mut next = 0usize;
+    // Every sample of a render has the same sampler: whether it is `independent` is read
+    // off the first one.
+    let mut independent = None;
     counters.width = width as u64;
     loop {
         // 1. Refill the free lanes, lowest first, from the queue.
@@ -202,6 +210,12 @@ fn trace_queue<L: Lanes>(
                 continue;
             };
             p.st.put(l, i, &st);
+            let pcg = sampler.independent_pcg();
+            let independent = *independent.get_or_insert(pcg.is_some());
+            debug_assert_eq!(independent, pcg.is_some(), "one sampler per render");
+            if let (true, Some(g)) = (independent, pcg) {
+                p.pcg.set_lane(i, &g);
+            }
             p.samplers[i] = sampler;
             p.slot.set_lane(i, q as u32);
             p.film_x.set_lane(i, pos.x);
@@ -313,7 +327,11 @@ fn trace_queue<L: Lanes>(
             |i| sis.lane(i),
             &sis,
             p.wi_world,
-            &mut p.samplers,
+            &mut if independent == Some(true) {
+                Draws::Independent(&mut p.pcg)
+            } else {
+                Draws::Streams(&mut p.samplers)
+            },
             stats,
             &mut bsdf_bufs,
         );
