@@ -6,7 +6,7 @@ mod common;
 use common::*;
 use penumbra::io::exr;
 use penumbra::progressive::{
-    relative_standard_error, render_progressive, Checkpoint, ErrorTarget, ProgressiveSettings,
+    relative_standard_error, render_progressive, scene_hash, Checkpoint, ErrorTarget, ProgressiveSettings,
     StopReason,
 };
 use std::path::PathBuf;
@@ -259,4 +259,53 @@ fn stop_flag_ends_the_render_after_the_pass_under_way() {
         render_progressive(&scene, &settings(3 * pass as u32), None, &|_| {}).unwrap();
     assert_eq!(reason, StopReason::SppReached);
     assert_eq!(p.film.image(), whole.film.image());
+}
+
+/// A checkpoint or part names its scene by a hash of the description and of every file the
+/// scene reads: a texture of a BSDF (also one nested in `twosided`), of an emitter, and a
+/// mesh all count, so a render resumed after one of them changed is refused rather than
+/// mixed with the old sums.
+#[test]
+fn the_scene_hash_covers_every_file_the_scene_reads() {
+    let dir = tmpdir("hash-files");
+    let files = ["albedo.exr", "back.exr", "radiance.exr", "mesh.obj"];
+    for f in files {
+        std::fs::write(dir.join(f), format!("{f} v1")).unwrap();
+    }
+    let xml = dir.join("scene.xml");
+    std::fs::write(
+        &xml,
+        r#"<scene version="3.0.0">
+    <sensor type="perspective"><film type="hdrfilm"><integer name="width" value="4"/><integer name="height" value="4"/></film></sensor>
+    <shape type="obj"><string name="filename" value="mesh.obj"/>
+        <bsdf type="twosided">
+            <bsdf type="diffuse"><texture type="bitmap" name="reflectance"><string name="filename" value="albedo.exr"/></texture></bsdf>
+            <bsdf type="diffuse"><texture type="bitmap" name="reflectance"><string name="filename" value="back.exr"/></texture></bsdf>
+        </bsdf>
+    </shape>
+    <shape type="sphere">
+        <emitter type="area"><texture type="bitmap" name="radiance"><string name="filename" value="radiance.exr"/></texture></emitter>
+    </shape>
+</scene>"#,
+    )
+    .unwrap();
+    let desc = || penumbra::scene::Scene::load_description(&xml, &[]).expect("scene loads");
+    let mut listed: Vec<String> = desc()
+        .files()
+        .iter()
+        .map(|p| p.file_name().unwrap().to_string_lossy().into_owned())
+        .collect();
+    listed.sort();
+    let mut expected: Vec<String> = files.iter().map(|f| f.to_string()).collect();
+    expected.sort();
+    assert_eq!(listed, expected);
+    let before = scene_hash(&desc());
+    for f in files {
+        std::fs::write(dir.join(f), format!("{f} v2")).unwrap();
+        let after = scene_hash(&desc());
+        assert_ne!(before, after, "{f} changed, the hash did not");
+        std::fs::write(dir.join(f), format!("{f} v1")).unwrap();
+        assert_eq!(scene_hash(&desc()), before, "{f} restored");
+    }
+    std::fs::remove_dir_all(&dir).ok();
 }
