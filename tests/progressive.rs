@@ -6,8 +6,8 @@ mod common;
 use common::*;
 use penumbra::io::exr;
 use penumbra::progressive::{
-    relative_standard_error, render_progressive, scene_hash, Checkpoint, ErrorTarget, ProgressiveSettings,
-    StopReason,
+    relative_standard_error, render_progressive, scene_hash, Checkpoint, ErrorTarget,
+    ProgressiveSettings, StopReason,
 };
 use std::path::PathBuf;
 use std::process::Command;

@@ -1069,6 +1069,23 @@ mod tests {
         assert_eq!(g.samples, 7);
     }
 
+    /// `add_parts` (an old checkpoint's values) ignores a pixel or value index out of range:
+    /// a value index past the last must not land in the next pixel's first value.
+    #[test]
+    fn add_parts_ignores_indices_out_of_range() {
+        let mut e = ExactFilm::new(2, 1);
+        e.add_parts(0, EXACT_VALUES, 1, 0);
+        e.add_parts(2, 0, 1, 0);
+        e.add_parts(0, 0, 0, 5);
+        for pixel in 0..2 {
+            for k in 0..EXACT_VALUES {
+                assert_eq!(e.value(pixel, k).to_f64(), 0.0, "pixel {pixel} value {k}");
+            }
+        }
+        e.add_parts(1, EXACT_VALUES - 1, 3, -2);
+        assert_eq!(e.value(1, EXACT_VALUES - 1).to_f64(), 0.75);
+    }
+
     /// A non-finite sum is refused with its pixel, and the film is left as it was.
     #[test]
     fn non_finite_sums_are_refused_and_leave_the_film_unchanged() {
