@@ -162,7 +162,7 @@ impl PathIntegrator {
                 st.result = (Vec4::from(st.result) + Vec4::from(st.throughput) * le * w).into();
             }
         }
-        if st.depth.saturating_add(1) >= self.max_depth {
+        if !self.goes_on_lanes(Scalar, st.depth) {
             return SurfaceStep::End;
         }
         SurfaceStep::Scatter { wi_world }
@@ -195,6 +195,14 @@ impl PathIntegrator {
             stats,
             std::slice::from_mut(bsdf_buf),
         )
+    }
+
+    /// Whether paths whose last segment was their `depth`-th may scatter at the surface it
+    /// reached: depth + 1 < max_depth (the scalar engine's [`PathIntegrator::at_surface`] and
+    /// the lane engine's non-emitting hits share this rule).
+    #[inline(always)]
+    pub fn goes_on_lanes<L: Lanes>(&self, l: L, depth: L::U32) -> L::M {
+        depth.cmp_lt(l.splat_u32(self.max_depth.saturating_sub(1)))
     }
 
     /// The vertices of the lanes of `m` (surface interactions `sis`, the directions towards

@@ -271,8 +271,8 @@ fn trace_queue<L: Lanes>(
         // scene or hit an emitter run the scalar steps (`escape`, `at_surface`) on their
         // state moved out of the lanes; the others (a hit on a shape that does not emit: no
         // emission, the path ends only at max_depth) stay in the lanes, with
-        // `at_surface`'s arithmetic in lanes: wi = -d / |d|, and the end where
-        // depth + 1 >= max_depth (max_depth >= 1 here, so depth >= max_depth - 1).
+        // `at_surface`'s arithmetic in lanes: wi = -d / |d|, and its end at max_depth
+        // ([`PathIntegrator::goes_on_lanes`]).
         let mut hit_bits = 0u32;
         let mut emits = 0u32;
         for i in lanes_of(active) {
@@ -303,7 +303,7 @@ fn trace_queue<L: Lanes>(
         }
         let plain = l.mask(hit_bits & !emits);
         if plain.any() {
-            let more = p.st.depth.cmp_lt(l.splat_u32(path.max_depth - 1));
+            let more = path.goes_on_lanes(l, p.st.depth);
             let goes_on = plain & more;
             p.wi_world = V3::select(goes_on, -p.st.ray.d.normalize(l.splat(1.0)), p.wi_world);
             scatter |= goes_on.bits();
