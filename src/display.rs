@@ -42,7 +42,12 @@ pub const RETRY: Duration = Duration::from_secs(5);
 /// How long a connection attempt may take (per address the host name resolves to).
 pub const CONNECT_TIMEOUT: Duration = Duration::from_secs(1);
 /// How long a write may make no progress before the connection counts as lost.
+#[cfg(not(test))]
 pub const WRITE_TIMEOUT: Duration = Duration::from_secs(5);
+/// The unit tests' (a stalled tev's test waits for it about three times: 15 s of the fast tier
+/// with the renderer's 5 s).
+#[cfg(test)]
+pub const WRITE_TIMEOUT: Duration = Duration::from_millis(500);
 /// How long [`LiveView::finish`] waits for the last image to be written.
 pub const FINAL_WAIT: Duration = Duration::from_secs(30);
 /// Frames of different images waiting at most (a further one drops the oldest).

@@ -682,10 +682,13 @@ fn converge_max_seconds_stops_each_ladder() {
 }
 
 /// `converge --mode spectral` (issue 43): Mitsuba's cbox.xml (measured spectra) against its
-/// llvm_ad_spectral reference. In spectral mode the image mean at 1024 spp lies within 4
-/// standard errors of the reference's in every channel; in RGB mode (no flag) the blue mean,
-/// 2.4% off, lies more than 6 standard errors away at 1024 spp (about 11 expected). Seen red
-/// with the flag not passed on to the ladders.
+/// llvm_ad_spectral reference. RGB mode's image mean is 2.4% off that reference in blue, and
+/// the noise of a 256-spp image mean here is about 0.1% (with the filter's correlation between
+/// pixels): the spectral ladder's mean lies within 1.2% (half the gap) of the reference in
+/// every channel, the RGB ladder's (no flag, same seed) blue mean more than 1.2% away. Seen
+/// red with the flag not passed on to the ladders. Agreement with the reference to its
+/// standard error is `tests/validation.rs` (entry spectral-mitsuba-cbox, which accounts for
+/// the filter); this test ran 1024 spp for it until 2026-12-05 (36 s of the fast tier).
 #[test]
 fn converge_in_spectral_mode() {
     let dir = TempDir::new("spectral");
@@ -716,27 +719,20 @@ fn converge_in_spectral_mode() {
         let j = read_json(&out_dir.join("converge.json"));
         j["series"][0]["runs"][0].clone()
     };
-    let spectral = run_mode("64,1024", &["--mode", "spectral"]);
-    let se = mean_se(&spectral, 1024.0);
+    let off =
+        |run: &Value, c: usize| run["steps"][1]["mean"][c].as_f64().unwrap() / ref_mean[c] - 1.0;
+    let spectral = run_mode("16,256", &["--mode", "spectral"]);
+    let rgb = run_mode("16,256", &[]);
     for c in 0..3 {
-        let m = spectral["steps"][1]["mean"][c].as_f64().unwrap();
-        assert!(
-            (m - ref_mean[c]).abs() < 4.0 * se,
-            "spectral channel {c}: {m} vs {} ± {se}",
-            ref_mean[c]
+        eprintln!(
+            "channel {c}: spectral mode {:+.3}%, RGB mode {:+.3}% from the spectral reference",
+            100.0 * off(&spectral, c),
+            100.0 * off(&rgb, c)
         );
+        assert!(off(&spectral, c).abs() < 0.012, "spectral channel {c}");
     }
-    let rgb = run_mode("64,1024", &[]);
-    let m = rgb["steps"][1]["mean"][2].as_f64().unwrap();
-    let se = mean_se(&rgb, 1024.0);
-    eprintln!(
-        "RGB mode blue mean {m} vs spectral reference {} ({:.1} se)",
-        ref_mean[2],
-        (m - ref_mean[2]) / se
-    );
     assert!(
-        (m - ref_mean[2]).abs() > 6.0 * se,
-        "RGB blue {m} vs {} ± {se}",
-        ref_mean[2]
+        off(&rgb, 2).abs() > 0.012,
+        "RGB mode's blue is the spectral one"
     );
 }
