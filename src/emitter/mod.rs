@@ -418,6 +418,15 @@ impl Emitter {
         }
     }
 
+    /// [`Emitter::eval_environment`] and [`Emitter::pdf_environment`] at once.
+    pub fn eval_environment_with_pdf(&self, d: Vec3, wl: Vec4) -> (Spectrum, f32) {
+        match self {
+            Emitter::Constant(e) => (e.radiance.eval(wl), constant::UNIFORM_SPHERE_PDF),
+            Emitter::EnvMap(e) => e.eval_with_pdf(d, wl),
+            _ => (Spectrum::ZERO, 0.0),
+        }
+    }
+
     /// Solid-angle density with which `sample_direction` yields the escaping direction `d`.
     pub fn pdf_environment(&self, d: Vec3) -> f32 {
         match self {

@@ -111,12 +111,12 @@ impl PathIntegrator {
     pub fn escape(&self, scene: &Scene, st: &mut PathState) {
         if scene.environment.is_some() && !(st.depth == 0 && self.hide_emitters) {
             let d = Vec3::from(st.ray.d);
-            let le = scene.eval_environment(d, st.wl[0]);
+            let (le, pdf) = scene.environment_with_pdf(d, st.wl[0]);
             if le != Spectrum::ZERO {
                 let w = if st.prev_delta {
                     1.0
                 } else {
-                    mis_power(st.prev_bsdf_pdf, scene.pdf_environment(d))
+                    mis_power(st.prev_bsdf_pdf, pdf)
                 };
                 st.result = (Vec4::from(st.result) + Vec4::from(st.throughput) * le * w).into();
             }

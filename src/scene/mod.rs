@@ -519,6 +519,20 @@ impl Scene {
         }
     }
 
+    /// [`Scene::eval_environment`] and [`Scene::pdf_environment`] at once (one lookup of
+    /// the direction in the map).
+    #[inline]
+    pub fn environment_with_pdf(&self, d: Vec3, wl: Vec4) -> (Spectrum, f32) {
+        match self.environment {
+            Some(e) => {
+                let (le, pdf) =
+                    self.emitters[e as usize].eval_environment_with_pdf(d.normalize(), wl);
+                (le, pdf * self.emitter_pmf(e as usize))
+            }
+            None => (Spectrum::ZERO, 0.0),
+        }
+    }
+
     /// The density with which [`Scene::sample_emitter_direction`] produces the escaping
     /// direction `d` (selection probability included).
     pub fn pdf_environment(&self, d: Vec3) -> f32 {
