@@ -250,6 +250,10 @@ fn hidden_emitters_and_short_paths() {
         set(8, true),
     );
     check("cornell-small-light, hide_emitters", &job, 4, None);
+    // camera rays that leave the scene see black, later escapes the environment
+    // (`escape_lanes`)
+    let job = load("scenes/cornell-envmap.xml", &[("res", "16")], set(8, true));
+    check("cornell-envmap, hide_emitters", &job, 4, None);
     // emitters only; and no path at all (black, takes no lane)
     for depth in [1, 0] {
         let job = load(
