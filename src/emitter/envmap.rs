@@ -7,11 +7,13 @@
 //! centres, x = u W − ½, wrapping around; rows are spread from pole to pole, y = v (H − 1),
 //! so the first row is the radiance straight up and the last straight down.
 //!
-//! Importance sampling: a piecewise-constant density over the cells between neighbouring
-//! texels (W columns by H − 1 rows), each weighted by the integral of its bilinear luminance
-//! (the mean of its four corners) times its solid angle 2π/W · (cos θ_j − cos θ_{j+1}),
-//! sampled with a marginal/conditional 2D distribution (pbrt-v4 §A.5.6). The density w.r.t.
-//! solid angle is p(u, v) / (2π² sin θ).
+//! Importance sampling, as Mitsuba's (`warp::Marginal2D` over the texels): a density in
+//! (u, v) bilinear between the texel centres (W columns, the first repeated after the last,
+//! by H rows; [`Bilinear2D`]), its value at each texel the texel's luminance times sin θ of
+//! its row, so that the density per solid angle, p(u, v) / (2π² sin θ), follows the
+//! bilinearly interpolated radiance. Until 2026-12-05 the density was constant over each
+//! cell between texels (the cell's mean luminance times its solid angle): at equal spp the
+//! environment-lit Cornell box had 1.22× the MSE of Mitsuba's image.
 //!
 //! Spectral mode (Mitsuba's spectral variants, [`EnvMapEmitter::new_spectral`]): each texel
 //! is stored as the coefficients of the spectrum of its colour over s = 2 max(R, G, B)
@@ -21,7 +23,7 @@
 //! spectrum times s instead of the luminance.
 
 use super::DirectionSample;
-use crate::sampling::Distribution2D;
+use crate::sampling::Bilinear2D;
 use crate::spectral::{self, D65Emission};
 use crate::spectrum::{from_rgb, Spectrum};
 use glam::{Mat3, Vec2, Vec3, Vec4};
@@ -40,7 +42,7 @@ pub struct EnvMapEmitter {
     spectral: Option<Box<SpectralTexels>>,
     to_world: Mat3,
     to_local: Mat3,
-    distribution: Option<Distribution2D>,
+    distribution: Option<Bilinear2D>,
     mean_radiance: f64,
 }
 
@@ -148,7 +150,6 @@ impl EnvMapEmitter {
     ) -> Self {
         let at = |v: &[f64], i: usize, j: usize| v[j * width + (i % width)];
         let (nu, nv) = (width, height - 1);
-        let mut weights = Vec::with_capacity(nu * nv);
         let mut mean = 0.0;
         let cos_row = |j: usize| (std::f64::consts::PI * j as f64 / nv as f64).cos();
         for j in 0..nv {
@@ -157,10 +158,18 @@ impl EnvMapEmitter {
                 let corners = |v: &[f64]| {
                     (at(v, i, j) + at(v, i + 1, j) + at(v, i, j + 1) + at(v, i + 1, j + 1)) / 4.0
                 };
-                weights.push(corners(lum) * band);
                 mean += corners(mean_rgb) * band * 2.0 * std::f64::consts::PI / nu as f64;
             }
         }
+        // The sampling density's vertices: each texel's weight times sin θ of its row (the
+        // density per solid angle is the bilinear interpolation over sin θ), the first
+        // column repeated after the last.
+        let vertices: Vec<f64> = (0..height)
+            .flat_map(|j| {
+                let sin_t = (std::f64::consts::PI * j as f64 / nv as f64).sin().max(0.0);
+                (0..=nu).map(move |i| at(lum, i, j) * sin_t)
+            })
+            .collect();
         EnvMapEmitter {
             width,
             height,
@@ -168,7 +177,7 @@ impl EnvMapEmitter {
             spectral,
             to_world,
             to_local: to_world.inverse(),
-            distribution: Distribution2D::new(&weights, nu, nv),
+            distribution: Bilinear2D::new(&vertices, nu, nv),
             mean_radiance: mean / (4.0 * std::f64::consts::PI),
         }
     }
