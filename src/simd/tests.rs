@@ -671,19 +671,30 @@ fn lanes_of<L: Lanes>(l: L, op: Op, inp: &Inputs) -> Out {
         let m2 = l.mask(bits_of(&inp.m2));
         let v = |k: usize| V3::new(fa(k), fa(k + 1), fa(k + 2));
         let out = &mut out[c..c + w];
+        // Results are read with `store`, each lane checked against `lane` (the mutation
+        // sample's part 2 missed `U32x8x2::store` → `()`: no test stored u32 lanes).
         let put_f = |out: &mut [[u64; 3]], x: L::F| {
+            let mut buf = [f32::NAN; MAX_WIDTH];
+            x.store(&mut buf);
             for (i, o) in out.iter_mut().enumerate() {
-                o[0] = x.lane(i).to_bits() as u64;
+                assert_eq!(buf[i].to_bits(), x.lane(i).to_bits(), "{op:?}: store, lane {i}");
+                o[0] = buf[i].to_bits() as u64;
             }
         };
         let put_u = |out: &mut [[u64; 3]], x: L::U32| {
+            let mut buf = [0xdead_beef_u32; MAX_WIDTH];
+            x.store(&mut buf);
             for (i, o) in out.iter_mut().enumerate() {
-                o[0] = x.lane(i) as u64;
+                assert_eq!(buf[i], x.lane(i), "{op:?}: store, lane {i}");
+                o[0] = buf[i] as u64;
             }
         };
         let put_q = |out: &mut [[u64; 3]], x: L::U64| {
+            let mut buf = [0xdead_beef_dead_beef_u64; MAX_WIDTH];
+            x.store(&mut buf);
             for (i, o) in out.iter_mut().enumerate() {
-                o[0] = x.lane(i);
+                assert_eq!(buf[i], x.lane(i), "{op:?}: store, lane {i}");
+                o[0] = buf[i];
             }
         };
         let put_m = |out: &mut [[u64; 3]], x: L::M| {
