@@ -677,7 +677,11 @@ fn lanes_of<L: Lanes>(l: L, op: Op, inp: &Inputs) -> Out {
             let mut buf = [f32::NAN; MAX_WIDTH];
             x.store(&mut buf);
             for (i, o) in out.iter_mut().enumerate() {
-                assert_eq!(buf[i].to_bits(), x.lane(i).to_bits(), "{op:?}: store, lane {i}");
+                assert_eq!(
+                    buf[i].to_bits(),
+                    x.lane(i).to_bits(),
+                    "{op:?}: store, lane {i}"
+                );
                 o[0] = buf[i].to_bits() as u64;
             }
         };
