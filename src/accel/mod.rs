@@ -409,6 +409,15 @@ fn record_triangle_hits<const N: usize>(
     (tmax, false)
 }
 
+/// Calls `f` with the index of every set bit of `bits`, lowest first.
+#[inline(always)]
+fn for_bits(mut bits: u32, mut f: impl FnMut(usize)) {
+    while bits != 0 {
+        f(bits.trailing_zeros() as usize);
+        bits &= bits - 1;
+    }
+}
+
 /// Pushes the entered children of a node (lanes `mask`, at least two, with entry distances
 /// `t_near`) onto the stack, far to near, all but the nearest, and returns that one to
 /// descend into. At most `N` of them: insertion sort.
@@ -880,6 +889,67 @@ impl Accel {
         self.traverse(ray, shapes, any, stack)
     }
 
+    /// The closest hits of the rays of the lanes `mask` (bit i: `rays[i]`), into `out[i]`
+    /// (other entries untouched): [`Accel::intersect`] for each, with the layout chosen and
+    /// the stack set up once for all of them (the lane engine's rays).
+    pub fn intersect_lanes(
+        &self,
+        rays: &[Ray],
+        mask: u32,
+        shapes: &[Shape],
+        out: &mut [Option<Hit>],
+    ) {
+        self.run_lanes(rays, mask, shapes, false, |i, hit| out[i] = hit);
+    }
+
+    /// The lanes of `mask` whose rays are occluded: [`Accel::occluded`] for each ray
+    /// `rays[i]`, bit i, set up once for all of them.
+    pub fn occluded_lanes(&self, rays: &[Ray], mask: u32, shapes: &[Shape]) -> u32 {
+        let mut occluded = 0u32;
+        self.run_lanes(rays, mask, shapes, true, |i, hit| {
+            occluded |= (hit.is_some() as u32) << i
+        });
+        occluded
+    }
+
+    #[inline(always)]
+    fn run_lanes(
+        &self,
+        rays: &[Ray],
+        mask: u32,
+        shapes: &[Shape],
+        any: bool,
+        mut out: impl FnMut(usize, Option<Hit>),
+    ) {
+        let size = self.stack_entries();
+        let mut fixed = [MaybeUninit::uninit(); STACK];
+        let mut heap = Vec::new();
+        let stack: &mut [MaybeUninit<(u32, f32)>] = if size <= STACK {
+            &mut fixed
+        } else {
+            heap.resize(size, MaybeUninit::uninit());
+            &mut heap
+        };
+        #[cfg(target_arch = "x86_64")]
+        if let Some(wide) = &self.wide8 {
+            if wide.is_empty() {
+                for_bits(mask, |i| out(i, None));
+                return;
+            }
+            // SAFETY: a `Wide8` is only built where `wide8::supported()` found AVX2.
+            unsafe { self.traverse8_lanes(wide, rays, mask, shapes, any, stack, &mut out) };
+            return;
+        }
+        for_bits(mask, |i| {
+            let hit = if self.root == EMPTY {
+                None
+            } else {
+                self.traverse(&rays[i], shapes, any, stack)
+            };
+            out(i, hit)
+        });
+    }
+
     /// The closest hit with 0 < t < ray.tmax.
     pub fn intersect(&self, ray: &Ray, shapes: &[Shape]) -> Option<Hit> {
         self.run(ray, shapes, false)
@@ -1129,6 +1199,105 @@ mod tests {
                 );
             }
         }
+    }
+
+    /// The lane engine's queries (`intersect_lanes`, `occluded_lanes`) answer every lane of
+    /// their mask as `intersect` and `occluded` answer its ray alone, and leave the other
+    /// lanes alone: 16 rays at a time with random masks (empty and full among them), rays of
+    /// random length, on 60 random triangles and a sphere, and on an empty scene, in both
+    /// layouts.
+    #[test]
+    fn lane_queries_answer_as_single_rays() {
+        let mut rng = rand_pcg::Pcg32::seed_from_u64(7);
+        let v = |rng: &mut rand_pcg::Pcg32, r: f32| {
+            Vec3::new(
+                rng.random_range(-r..r),
+                rng.random_range(-r..r),
+                rng.random_range(-r..r),
+            )
+        };
+        let tris: Vec<Vec3> = (0..60)
+            .flat_map(|_| {
+                let c = v(&mut rng, 1.0);
+                [
+                    c + 0.3 * v(&mut rng, 1.0),
+                    c + 0.3 * v(&mut rng, 1.0),
+                    c + 0.3 * v(&mut rng, 1.0),
+                ]
+            })
+            .collect();
+        let shapes = [
+            shape(ShapeGeometry::Mesh(Mesh::new(
+                tris,
+                None,
+                None,
+                (0..60).map(|i| [3 * i, 3 * i + 1, 3 * i + 2]).collect(),
+                false,
+            ))),
+            shape(ShapeGeometry::Sphere(Sphere::new(
+                DVec3::new(0.2, -0.1, 0.3),
+                0.4,
+                false,
+            ))),
+        ];
+        let key = |h: &Option<Hit>| h.map(|h| (h.prim, h.t, h.b1, h.b2, h.instance));
+        let sentinel = Some(Hit {
+            prim: 99_999,
+            t: -1.0,
+            b1: 0.0,
+            b2: 0.0,
+            instance: 0,
+        });
+        let (mut hits, mut occluded) = (0, 0);
+        for layout in [Layout::Wide4, Layout::Wide8] {
+            for scene in [&shapes[..], &[]] {
+                let accel = Accel::build_with_layout(scene, layout);
+                for batch in 0..200 {
+                    let rays: Vec<Ray> = (0..16)
+                        .map(|_| {
+                            let o = v(&mut rng, 2.0);
+                            let tmax = if rng.random::<f32>() < 0.5 {
+                                f32::INFINITY
+                            } else {
+                                rng.random_range(0.1..3.0)
+                            };
+                            Ray::new(o, v(&mut rng, 0.8) - o, tmax)
+                        })
+                        .collect();
+                    let mask = match batch {
+                        0 => 0,
+                        1 => 0xffff,
+                        _ => rng.random::<u32>() & 0xffff,
+                    };
+                    let mut out = [sentinel; 16];
+                    accel.intersect_lanes(&rays, mask, scene, &mut out);
+                    let bits = accel.occluded_lanes(&rays, mask, scene);
+                    for (i, ray) in rays.iter().enumerate() {
+                        let on = mask >> i & 1 == 1;
+                        let want = if on {
+                            key(&accel.intersect(ray, scene))
+                        } else {
+                            key(&sentinel)
+                        };
+                        assert_eq!(key(&out[i]), want, "{layout:?} batch {batch} lane {i}");
+                        let want = on && accel.occluded(ray, scene);
+                        assert_eq!(
+                            bits >> i & 1 == 1,
+                            want,
+                            "{layout:?} batch {batch} lane {i}"
+                        );
+                        hits += (on && out[i].is_some()) as u32;
+                        occluded += want as u32;
+                    }
+                    assert_eq!(bits & !mask, 0);
+                }
+            }
+        }
+        // The rays do hit, and not all of them.
+        assert!(
+            hits > 1000 && occluded > 1000 && hits < 2 * 200 * 16,
+            "{hits} {occluded}"
+        );
     }
 
     fn shape(geometry: ShapeGeometry) -> Shape {

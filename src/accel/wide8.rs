@@ -587,6 +587,27 @@ impl Accel {
         }
     }
 
+    /// [`Accel::traverse8`] for each ray `rays[i]` of the lanes `mask`, its hit handed to
+    /// `out(i, hit)`: one call into the AVX2 code for all of them.
+    #[target_feature(enable = "avx2")]
+    #[allow(clippy::too_many_arguments)]
+    pub(super) fn traverse8_lanes(
+        &self,
+        wide: &Wide8,
+        rays: &[Ray],
+        mut mask: u32,
+        shapes: &[Shape],
+        any: bool,
+        stack: &mut [MaybeUninit<(u32, f32)>],
+        out: &mut impl FnMut(usize, Option<Hit>),
+    ) {
+        while mask != 0 {
+            let i = mask.trailing_zeros() as usize;
+            mask &= mask - 1;
+            out(i, self.traverse8(wide, &rays[i], shapes, any, stack));
+        }
+    }
+
     /// Walks the 8-wide tree with `stack` (entries: child reference, entry distance), of at
     /// least `wide.stack_size` entries, nearest child first; entries below the stack pointer
     /// are always written before they are read, so the stack needs no initialisation.

@@ -15,7 +15,7 @@ use crate::sampler::{Draws, SampleStream};
 use crate::sampling::{mis_power, mis_power_lanes};
 use crate::scene::Scene;
 use crate::shape::{SurfaceInteraction, SurfaceInteractions};
-use crate::simd::{for_each_lane, LaneF32, LaneMask, LaneU32, Lanes, Scalar, V3, V4};
+use crate::simd::{for_each_lane, LaneF32, LaneMask, LaneU32, Lanes, Scalar, MAX_WIDTH, V3, V4};
 use crate::spectrum::Spectrum;
 use glam::{Vec3, Vec4};
 
@@ -338,17 +338,21 @@ impl PathIntegrator {
         let delta = ds.delta.bits();
         let diffuse_bits = diffuse.m.bits();
         let mut bsdf_pdf = zero;
-        let mut visible = 0u32;
+        stats.rays += lit.bits().count_ones() as u64;
+        // The shadow rays of all lanes in one query (the scalar engine: its one ray).
+        let occluded = if L::WIDTH == 1 {
+            scene.occluded(&ray.lane(0)) as u32
+        } else {
+            let mut rays = [ray.lane(0); MAX_WIDTH];
+            for_each_lane(L::WIDTH, lit, |i| rays[i] = ray.lane(i));
+            scene.accel.occluded_lanes(&rays, lit.bits(), &scene.shapes)
+        };
+        let visible = lit.bits() & !occluded;
         for_each_lane(
             L::WIDTH,
-            lit,
+            l.mask(visible),
             #[inline(always)]
             |i| {
-                stats.rays += 1;
-                if scene.occluded(&ray.lane(i)) {
-                    return;
-                }
-                visible |= 1 << i;
                 // Delta emitters cannot be found by BSDF sampling: no MIS, no BSDF density.
                 if delta >> i & 1 == 0 && diffuse_bits >> i & 1 == 0 {
                     let bsdf = lane_bsdf(scene, sis.shape.lane(i), &bufs[i]);

@@ -182,6 +182,7 @@ fn trace_queue<L: Lanes>(
     let mut p = Paths::new(l);
     // What each lane's ray hit, and where, between the intersection and the later steps.
     let mut hits: [Option<Hit>; MAX_WIDTH] = [None; MAX_WIDTH];
+    let mut rays = [Ray::new(glam::Vec3::ZERO, glam::Vec3::Z, 0.0); MAX_WIDTH];
     let mut sis = SurfaceInteractions::zero(l);
     // Where the lanes' materials vary, their BSDFs, filled in place (see `Scene::bsdf_at`).
     let mut bsdf_bufs = vec![ShadingBsdf::new(); width];
@@ -244,9 +245,14 @@ fn trace_queue<L: Lanes>(
         let (mut t, mut b1, mut b2) = (zero, zero, zero);
         let mut on_mesh = 0u32;
         for i in lanes_of(active) {
-            stats.rays += 1;
-            let ray = p.st.ray.lane(i);
-            hits[i] = scene.accel.intersect(&ray, &scene.shapes);
+            rays[i] = p.st.ray.lane(i);
+        }
+        stats.rays += n as u64;
+        scene
+            .accel
+            .intersect_lanes(&rays, active, &scene.shapes, &mut hits);
+        for i in lanes_of(active) {
+            let ray = rays[i];
             let Some(hit) = &hits[i] else {
                 continue;
             };
