@@ -26,6 +26,7 @@
 use crate::geometry::{gamma, Ray};
 use crate::shape::mesh::{intersect_triangle4, RayShear4, Tri4};
 use crate::shape::{Shape, ShapeGeometry, SurfaceInteraction};
+use crate::simd::lanes_of;
 use glam::{DMat3, DMat4, DVec3, Vec3, Vec3A, Vec4};
 use obvhs::aabb::Aabb;
 use obvhs::bvh2::Bvh2;
@@ -407,15 +408,6 @@ fn record_triangle_hits<const N: usize>(
         }
     }
     (tmax, false)
-}
-
-/// Calls `f` with the index of every set bit of `bits`, lowest first.
-#[inline(always)]
-fn for_bits(mut bits: u32, mut f: impl FnMut(usize)) {
-    while bits != 0 {
-        f(bits.trailing_zeros() as usize);
-        bits &= bits - 1;
-    }
 }
 
 /// Pushes the entered children of a node (lanes `mask`, at least two, with entry distances
@@ -931,23 +923,14 @@ impl Accel {
             &mut heap
         };
         #[cfg(target_arch = "x86_64")]
-        if let Some(wide) = &self.wide8 {
-            if wide.is_empty() {
-                for_bits(mask, |i| out(i, None));
-                return;
-            }
+        if let Some(wide) = self.wide8.as_ref().filter(|w| !w.is_empty()) {
             // SAFETY: a `Wide8` is only built where `wide8::supported()` found AVX2.
             unsafe { self.traverse8_lanes(wide, rays, mask, shapes, any, stack, &mut out) };
             return;
         }
-        for_bits(mask, |i| {
-            let hit = if self.root == EMPTY {
-                None
-            } else {
-                self.traverse(&rays[i], shapes, any, stack)
-            };
-            out(i, hit)
-        });
+        for i in lanes_of(mask) {
+            out(i, self.walk(&rays[i], shapes, any, stack));
+        }
     }
 
     /// The closest hit with 0 < t < ray.tmax.

@@ -595,15 +595,13 @@ impl Accel {
         &self,
         wide: &Wide8,
         rays: &[Ray],
-        mut mask: u32,
+        mask: u32,
         shapes: &[Shape],
         any: bool,
         stack: &mut [MaybeUninit<(u32, f32)>],
         out: &mut impl FnMut(usize, Option<Hit>),
     ) {
-        while mask != 0 {
-            let i = mask.trailing_zeros() as usize;
-            mask &= mask - 1;
+        for i in crate::simd::lanes_of(mask) {
             out(i, self.traverse8(wide, &rays[i], shapes, any, stack));
         }
     }

@@ -316,6 +316,18 @@ fn gather_out_of_bounds(len: usize) -> ! {
     panic!("lane gather: an active lane's index is out of bounds for a table of {len}")
 }
 
+/// The set lanes of `bits`, lowest first.
+#[inline(always)]
+pub fn lanes_of(mut bits: u32) -> impl Iterator<Item = usize> {
+    std::iter::from_fn(move || {
+        (bits != 0).then(|| {
+            let i = bits.trailing_zeros() as usize;
+            bits &= bits - 1;
+            i
+        })
+    })
+}
+
 /// Runs `f` on every set lane of `m`, lowest first: the per-lane part of a kernel (what is
 /// not ported yet, or is mostly scattered loads). On the width-1 backend it is one `if`.
 #[inline(always)]
@@ -326,6 +338,8 @@ pub fn for_each_lane<M: LaneMask>(width: usize, m: M, mut f: impl FnMut(usize)) 
         }
         return;
     }
+    // The loop of `lanes_of` written out: through the iterator the lane engine ran 0.5% more
+    // instructions a path (Cornell box, callgrind).
     let mut bits = m.bits();
     while bits != 0 {
         f(bits.trailing_zeros() as usize);

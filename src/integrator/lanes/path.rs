@@ -30,7 +30,9 @@ use crate::sampler::{Draws, SampleStream};
 use crate::scene::Scene;
 use crate::shape::{triangle_interactions, ShapeGeometry, SurfaceInteractions, TriangleLanes};
 use crate::simd::MAX_WIDTH;
-use crate::simd::{dispatch, Backend, LaneF32, LaneMask, LaneProgram, LaneU32, Lanes, V3};
+use crate::simd::{
+    dispatch, lanes_of, Backend, LaneF32, LaneMask, LaneProgram, LaneU32, Lanes, V3,
+};
 use crate::spectrum::Spectrum;
 use glam::Vec2;
 
@@ -147,18 +149,6 @@ impl<L: Lanes> Paths<L> {
         out[self.slot.lane(i) as usize] = (pos, result);
         self.active = self.active.and_not(self.l.mask(1 << i));
     }
-}
-
-/// The set lanes of `bits`, lowest first.
-#[inline(always)]
-fn lanes_of(mut bits: u32) -> impl Iterator<Item = usize> {
-    std::iter::from_fn(move || {
-        (bits != 0).then(|| {
-            let i = bits.trailing_zeros() as usize;
-            bits &= bits - 1;
-            i
-        })
-    })
 }
 
 #[inline(always)]
